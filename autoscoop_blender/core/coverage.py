@@ -1,0 +1,382 @@
+"""Coverage of one sensor pose, by two methods, and of a set of sensors.
+
+Both methods answer the same question for a pose: which target points does the
+sensor cover (line of sight, inside range and FoV, point density at least the
+model's threshold), with what density chi, and what is its footprint on the ground.
+
+``pointcloud`` (the paper): cast the whole ray pattern, project the hits to XY, give
+each hit the density of the pattern around it, keep the hits over the threshold and
+take the alpha shape of the kept hits as the footprint; target points inside it are
+covered, chi interpolated from the hits. Rays per pose: the pattern size.
+
+``targeted``: test every target point against range and FoV, and its analytic
+density, in numpy; cast one ray from the sensor to each point that passes; the point
+is covered if nothing is hit before it. Rays per pose: the points that can count.
+Exact at the grid's resolution.
+
+A footprint outside the targets matters to the paper's fitness (its tau term) and to
+the relative-coverage metric; evaluators look at outside cells only within
+``outside_band_m`` of the targets (``None``: none, ``inf``: all within range).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import shapely
+from numpy.typing import NDArray
+from shapely.geometry.base import BaseGeometry
+
+from .alpha import Triangulation, alpha_mask, triangulate, union_triangles
+from .grid import GroundGrid
+from .raycast import RayCaster
+from .sensors import SensorModel, SensorPose, frame
+
+I64 = NDArray[np.int64]
+F64 = NDArray[np.float64]
+
+METHODS = ("targeted", "pointcloud")
+
+# A sight line stops this short of its target point, so that the surface the point
+# lies on cannot block it through rounding (the caster works in single precision).
+SIGHT_MARGIN_M = 0.01
+
+
+@dataclass
+class SensorCoverage:
+    """What one pose covers. Indices into the grid's target arrays are "ordinals".
+
+    covered: (K,) target ordinals covered; chi: (K,) their density, points/m^2.
+    visible: target ordinals with line of sight inside range and FoV (any density),
+    or None when not asked for. outside: flat cells outside the targets that the
+    footprint covers (within the band asked for). footprint_m2: the whole footprint's
+    area, or None when it was not evaluated in full.
+    """
+
+    pose: SensorPose
+    model: SensorModel
+    method: str
+    covered: I64
+    chi: F64
+    visible: I64 | None
+    outside: I64
+    footprint_m2: float | None
+    rays: int
+    # What the footprint polygon is built from, on demand (see footprint_polygon).
+    _triangles: F64 | None = field(default=None, repr=False)
+    _cells: I64 | None = field(default=None, repr=False)
+
+
+def place(
+    grid: GroundGrid,
+    x: float,
+    y: float,
+    height_m: float,
+    pitch_deg: float,
+    yaw_deg: float,
+) -> SensorPose:
+    """A pose at local (x, y), ``height_m`` above the top surface there."""
+    z, _ = grid.drop(np.array([[x, y]]))
+    return SensorPose(x, y, float(z[0]) + height_m, height_m, pitch_deg, yaw_deg)
+
+
+class TargetedEvaluator:
+    """One sight ray per target point that can count (see module docstring)."""
+
+    method = "targeted"
+
+    def __init__(self, grid: GroundGrid, caster: RayCaster) -> None:
+        self.grid = grid
+        self.caster = caster
+
+    def evaluate(
+        self,
+        model: SensorModel,
+        pose: SensorPose,
+        outside_band_m: float | None = None,
+        visibility: bool = False,
+    ) -> SensorCoverage:
+        grid = self.grid
+        s = pose.position
+        rot = frame(pose.pitch_deg, pose.yaw_deg)
+        cells, ordinal = _cells_in_reach(grid, s, model.range_m, outside_band_m)
+        is_target = ordinal >= 0
+
+        z, normals = grid.surface(cells)
+        ground = np.column_stack([grid.xy(cells), z])
+        # Sight lines go to the target point (raised by the target height) ...
+        point = ground + (0.0, 0.0, grid.target_height_m)
+        vec = point - s
+        dist = np.linalg.norm(vec, axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            d = vec / dist[:, None]
+        in_view = (dist > 1e-9) & (dist <= model.range_m)
+        in_view[in_view] = model.in_fov(d[in_view] @ rot.T)
+        # ... while the density is the pattern's on the ground surface under it.
+        gvec = ground - s
+        gdist = np.linalg.norm(gvec, axis=1)
+        dense = np.zeros(len(cells), dtype=bool)
+        density = np.zeros(len(cells))
+        if in_view.any():
+            gd = gvec[in_view] / np.maximum(gdist[in_view], 1e-9)[:, None]
+            density[in_view] = model.ground_density(
+                gd @ rot.T, gd, gdist[in_view], normals[in_view]
+            )
+            dense = in_view & (density >= model.min_density_per_m2)
+
+        ask = dense | (in_view & is_target) if visibility else dense
+        clear = np.zeros(len(cells), dtype=bool)
+        idx = np.flatnonzero(ask)
+        if len(idx):
+            origins = np.broadcast_to(s, (len(idx), 3))
+            limit = dist[idx] * (1 - 1e-7) - SIGHT_MARGIN_M
+            hit = self.caster.cast(origins, d[idx], limit)
+            clear[idx] = ~np.isfinite(hit)
+
+        covered = clear & dense
+        cov_t = covered & is_target
+        full = outside_band_m is not None and math.isinf(outside_band_m)
+        return SensorCoverage(
+            pose=pose,
+            model=model,
+            method=self.method,
+            covered=ordinal[cov_t],
+            chi=density[cov_t],
+            visible=ordinal[clear & in_view & is_target] if visibility else None,
+            outside=cells[covered & ~is_target],
+            footprint_m2=float(covered.sum() * grid.cell_area) if full else None,
+            rays=len(idx),
+            _cells=cells[covered],
+        )
+
+
+class PointcloudEvaluator:
+    """The paper's method: ray pattern -> hits -> density -> alpha-shape footprint.
+
+    ``oversample`` casts ``oversample^2`` rays per pattern ray (densities stay in the
+    sensor's own units). ``alpha`` scales the alpha radius to the local ray spacing
+    (a triangle is kept when its circumradius is at most ``alpha`` times the largest
+    spacing at its corners); ``alpha_m`` instead fixes the radius in metres.
+    """
+
+    method = "pointcloud"
+
+    def __init__(
+        self,
+        grid: GroundGrid,
+        caster: RayCaster,
+        oversample: int = 1,
+        alpha: float = 1.0,
+        alpha_m: float | None = None,
+    ) -> None:
+        self.grid = grid
+        self.caster = caster
+        self.oversample = int(oversample)
+        self.alpha = float(alpha)
+        self.alpha_m = alpha_m
+        self._patterns: dict[SensorModel, F64] = {}
+
+    def _radius_limit(self, tri: Triangulation, spacing: F64) -> F64 | float:
+        """Alpha radius per triangle: fixed, or ``alpha`` x the widest corner spacing."""
+        if self.alpha_m is not None:
+            return self.alpha_m
+        return self.alpha * spacing[tri.simplices].max(axis=1)
+
+    def _pattern(self, model: SensorModel) -> F64:
+        if model not in self._patterns:
+            self._patterns[model] = model.pattern_directions(self.oversample)
+        return self._patterns[model]
+
+    def evaluate(
+        self,
+        model: SensorModel,
+        pose: SensorPose,
+        outside_band_m: float | None = None,
+        visibility: bool = False,
+    ) -> SensorCoverage:
+        grid = self.grid
+        s = pose.position
+        rot = frame(pose.pitch_deg, pose.yaw_deg)
+        dirs = self._pattern(model) @ rot  # sensor frame -> world, (nv, nh, 3)
+        flat = dirs.reshape(-1, 3)
+        dist = self.caster.cast(np.broadcast_to(s, flat.shape), flat, model.range_m)
+        dist = dist.reshape(dirs.shape[:2])
+        hit = np.isfinite(dist)
+        xy = np.where(hit[..., None], s[:2] + dirs[..., :2] * dist[..., None], np.nan)
+
+        density, spacing = _pattern_density(xy, hit, self.oversample**2)
+        pts, pts_density, pts_spacing = xy[hit], density[hit], spacing[hit]
+        # The footprint is the alpha shape of the hits over the threshold (the
+        # paper's filtered FoV); line of sight alone is the alpha shape of all hits.
+        dense = pts_density >= model.min_density_per_m2
+        tri = triangulate(pts[dense])
+        keep_tri = alpha_mask(tri, self._radius_limit(tri, pts_spacing[dense]))
+
+        cells, ordinal = _cells_in_reach(grid, s, model.range_m, outside_band_m)
+        is_target = ordinal >= 0
+        qxy = grid.xy(cells)
+        covered, simplex = _inside(tri, keep_tri, qxy)
+        cov_t = covered & is_target
+        chi = _interpolate(tri, pts_density[dense], qxy[cov_t], simplex[cov_t])
+
+        visible = None
+        if visibility:
+            all_tri = triangulate(pts)
+            all_keep = alpha_mask(all_tri, self._radius_limit(all_tri, pts_spacing))
+            seen, _ = _inside(all_tri, all_keep, qxy[is_target])
+            visible = ordinal[is_target][seen | covered[is_target]]
+        return SensorCoverage(
+            pose=pose,
+            model=model,
+            method=self.method,
+            covered=ordinal[cov_t],
+            chi=chi,
+            visible=visible,
+            outside=cells[covered & ~is_target],
+            footprint_m2=float(tri.areas()[keep_tri].sum()),
+            rays=int(flat.shape[0]),
+            _triangles=tri.points[tri.simplices[keep_tri]],
+        )
+
+
+def _cells_in_reach(
+    grid: GroundGrid, s: F64, range_m: float, outside_band_m: float | None
+) -> tuple[I64, I64]:
+    """Cells within range of ``s`` that count: targets, plus outside cells in the band.
+
+    Returns flat cell indices (K,) and their target ordinals (K,), -1 outside.
+    """
+    cells = grid.cells_in_disk(s[:2], range_m)
+    ordinal = grid.target_ordinal(cells).astype(np.int64)
+    keep = ordinal >= 0
+    if outside_band_m is not None:
+        keep |= grid.dist_to_target(cells) <= outside_band_m
+    return cells[keep], ordinal[keep]
+
+
+def _inside(
+    tri: Triangulation, keep: NDArray[np.bool_], xy: F64
+) -> tuple[NDArray[np.bool_], NDArray[np.int_]]:
+    """(K,) whether points (K, 2) lie in a kept triangle, and the triangle index."""
+    simplex = tri.locate(xy)
+    inside = simplex >= 0
+    inside[inside] = keep[simplex[inside]]
+    return inside, simplex
+
+
+def _pattern_density(xy: F64, hit: NDArray[np.bool_], rays_per_pattern_ray: int) -> tuple[F64, F64]:
+    """Density (points/m^2, sensor units) and spacing (m) of every hit of a ray grid.
+
+    xy: (nv, nh, 2) projected hits (nan for a miss). Each hit spans the parallelogram
+    of the steps to its nearer hit neighbour along each pattern axis; its area is the
+    ground one pattern ray stands for, so density = 1 / area (divided by the
+    oversampling). The nearer neighbour is taken so that a step across a shadow edge
+    or onto a wall does not count. A hit with no neighbour along an axis has density 0
+    and spacing 0 (it neither counts nor widens the alpha radius).
+    """
+    du = _nearer_step(xy, hit, axis=1)
+    dv = _nearer_step(xy, hit, axis=0)
+    area = np.abs(du[..., 0] * dv[..., 1] - du[..., 1] * dv[..., 0])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        density = np.where(area > 0, 1.0 / (area * rays_per_pattern_ray), np.inf)
+    density = np.where(np.isnan(area), 0.0, density)
+    spacing = np.fmax(np.linalg.norm(du, axis=-1), np.linalg.norm(dv, axis=-1))
+    return density, np.nan_to_num(spacing, nan=0.0)
+
+
+def _nearer_step(xy: F64, hit: NDArray[np.bool_], axis: int) -> F64:
+    """(nv, nh, 2) step to the nearer hit neighbour along ``axis`` (nan if none)."""
+    fwd = np.full_like(xy, np.nan)
+    bwd = np.full_like(xy, np.nan)
+    n = xy.shape[axis]
+    head = [slice(None)] * 3
+    tail = [slice(None)] * 3
+    head[axis], tail[axis] = slice(0, n - 1), slice(1, n)
+    step = xy[tuple(tail)] - xy[tuple(head)]  # nan where either end missed
+    fwd[tuple(head)] = step
+    bwd[tuple(tail)] = step
+    lf = np.linalg.norm(fwd, axis=-1)
+    lb = np.linalg.norm(bwd, axis=-1)
+    use_b = np.isnan(lf) | (lb < lf)
+    out = np.where(use_b[..., None], bwd, fwd)
+    out[~hit] = np.nan
+    return out
+
+
+def _interpolate(tri: Triangulation, values: F64, xy: F64, simplex: NDArray[np.int_]) -> F64:
+    """Linear interpolation of per-point values (P,) at points xy (K, 2) in triangles."""
+    if len(xy) == 0:
+        return np.zeros(0)
+    w = tri.barycentric(xy, simplex)
+    v = values[tri.simplices[simplex]]
+    # Wall hits project onto a line and report infinite density; cap them at the
+    # densest finite neighbour so chi stays a number.
+    finite = np.isfinite(v)
+    cap = np.where(finite, v, -np.inf).max(axis=1, keepdims=True)
+    v = np.where(finite, v, np.where(np.isfinite(cap), cap, 0.0))
+    return np.einsum("kj,kj->k", w, v)
+
+
+def footprint_polygon(grid: GroundGrid, cov: SensorCoverage) -> BaseGeometry:
+    """The footprint as a (Multi)Polygon in local metres (empty if nothing covered)."""
+    if cov._triangles is not None:
+        return union_triangles(cov._triangles)
+    cells = cov._cells if cov._cells is not None else np.zeros(0, dtype=np.int64)
+    if len(cells) == 0:
+        return shapely.Polygon()
+    c = grid.xy(cells)
+    h = grid.spacing / 2
+    return shapely.coverage_union_all(
+        shapely.box(c[:, 0] - h, c[:, 1] - h, c[:, 0] + h, c[:, 1] + h)
+    )
+
+
+@dataclass(frozen=True)
+class CoverageSummary:
+    """Per-target-point counts over a set of sensors, and the union's totals.
+
+    n_visible, n_covered: (N,) sensors with line of sight / covering each target
+    point; best_density: (N,) the highest chi among the covering sensors (0: none).
+    """
+
+    n_visible: NDArray[np.int32]
+    n_covered: NDArray[np.int32]
+    best_density: F64
+    cell_area: float
+
+    @property
+    def covered_points(self) -> int:
+        return int((self.n_covered > 0).sum())
+
+    @property
+    def coverage_fraction(self) -> float:
+        return self.covered_points / max(len(self.n_covered), 1)
+
+    @property
+    def covered_m2(self) -> float:
+        return self.covered_points * self.cell_area
+
+
+def summarize(grid: GroundGrid, coverages: list[SensorCoverage]) -> CoverageSummary:
+    """Combine per-sensor coverages over the grid's target points."""
+    n = grid.n_targets
+    n_vis = np.zeros(n, dtype=np.int32)
+    n_cov = np.zeros(n, dtype=np.int32)
+    best = np.zeros(n)
+    for cov in coverages:
+        visible = cov.visible if cov.visible is not None else cov.covered
+        n_vis[visible] += 1
+        n_cov[cov.covered] += 1
+        np.maximum.at(best, cov.covered, cov.chi)
+    return CoverageSummary(n_vis, n_cov, best, grid.cell_area)
+
+
+def make_evaluator(method: str, grid: GroundGrid, caster: RayCaster, **knobs: float):
+    """The evaluator for ``method`` ("targeted" | "pointcloud") with its knobs."""
+    if method == "targeted":
+        return TargetedEvaluator(grid, caster)
+    if method == "pointcloud":
+        return PointcloudEvaluator(grid, caster, **knobs)  # type: ignore[arg-type]
+    raise ValueError(f"unknown coverage method {method!r} (known: {', '.join(METHODS)})")

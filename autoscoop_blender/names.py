@@ -1,0 +1,23 @@
+"""Names shared by the whole extension: object-name prefixes, custom properties, idnames.
+
+The scene contract lives here and nowhere else: a curve whose name starts with
+``Target`` is a target area, one whose name starts with ``SensorArea`` is a sensor
+area (both case-insensitive, ``Sensor_Area`` and ``Sensor-Area`` too), and every other
+visible mesh occludes. The panel can mark curves explicitly through ``ROLE_PROP``.
+"""
+
+import re
+
+# Object-name prefixes of the scene contract, matched case-insensitively.
+TARGET_RE = re.compile(r"^target", re.IGNORECASE)
+SENSOR_AREA_RE = re.compile(r"^sensor[ _-]?area", re.IGNORECASE)
+
+# Custom properties a user (or the panel) may set on objects.
+ROLE_PROP = "autoscoop_role"  # "target" | "sensor_area": marks a curve explicitly
+ROLE_TARGET = "target"
+ROLE_SENSOR_AREA = "sensor_area"
+IGNORE_PROP = "autoscoop_ignore"  # True: the mesh does not occlude
+HEIGHT_PROP = "height_m"  # on a sensor area: mast height there, metres
+
+# Everything AutoSCOOP creates goes into this collection and nowhere else.
+RESULTS_COLLECTION = "AutoSCOOP Results"

@@ -1,0 +1,1 @@
+"""Blender glue: scene extraction, the BVHTree ray caster, results in the scene."""

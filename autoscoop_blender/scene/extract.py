@@ -1,0 +1,216 @@
+"""Blender scene -> SceneModel: occluder triangles, target areas, sensor areas.
+
+Reads the *evaluated* depsgraph, so modifiers, geometry-node scatter and collection
+instances occlude as the viewport shows them, in world coordinates. Nothing here
+changes the user's data. The contract (see ``names``): curves named ``Target*`` or
+``SensorArea*`` (or marked with ``autoscoop_role``) are areas; every other visible
+object with faces occludes unless it has ``autoscoop_ignore`` set or lives in the
+results collection.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import bpy
+import numpy as np
+from numpy.typing import NDArray
+
+from .. import names
+from ..core.errors import SceneContractError
+from ..core.scene_model import Area, SceneModel, area_from_rings, choose_origin
+
+F64 = NDArray[np.float64]
+
+_GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT"}
+
+
+def area_role(obj: bpy.types.Object) -> str | None:
+    """``names.ROLE_TARGET``, ``names.ROLE_SENSOR_AREA`` or None for an object."""
+    role = obj.get(names.ROLE_PROP)
+    if role in (names.ROLE_TARGET, names.ROLE_SENSOR_AREA):
+        return role
+    if names.TARGET_RE.match(obj.name):
+        return names.ROLE_TARGET
+    if names.SENSOR_AREA_RE.match(obj.name):
+        return names.ROLE_SENSOR_AREA
+    return None
+
+
+def in_results(obj: bpy.types.Object) -> bool:
+    """Whether the object belongs to AutoSCOOP's own results collection."""
+    return any(c.name == names.RESULTS_COLLECTION for c in obj.users_collection)
+
+
+def extract_scene(
+    scene: bpy.types.Scene | None = None,
+    depsgraph: bpy.types.Depsgraph | None = None,
+) -> SceneModel:
+    """The SceneModel of a Blender scene (default: the context's), in local metres.
+
+    Raises SceneContractError naming the object for any contract violation.
+    """
+    scene = scene or bpy.context.scene
+    depsgraph = depsgraph or bpy.context.evaluated_depsgraph_get()
+    source = bpy.data.filepath and Path(bpy.data.filepath).name or scene.name
+
+    target_rings: list[tuple[bpy.types.Object, list[F64]]] = []
+    sensor_rings: list[tuple[bpy.types.Object, list[F64]]] = []
+    for obj in scene.objects:
+        role = area_role(obj)
+        if role is None or in_results(obj):
+            continue
+        if obj.type != "CURVE":
+            kind = "target area" if role == names.ROLE_TARGET else "sensor area"
+            raise SceneContractError(
+                f"{obj.name}: is a {obj.type.lower()}, but a {kind} must be a curve"
+            )
+        rings = curve_rings(obj)
+        (target_rings if role == names.ROLE_TARGET else sensor_rings).append((obj, rings))
+    if not target_rings:
+        raise SceneContractError(
+            f"{source}: no target area (a closed curve named 'Target...' or marked "
+            "as target in the AutoSCOOP panel)"
+        )
+    if not sensor_rings:
+        raise SceneContractError(
+            f"{source}: no sensor area (a closed curve named 'SensorArea...' or "
+            "marked as sensor area in the AutoSCOOP panel)"
+        )
+
+    all_pts = np.concatenate([r for _, rings in target_rings + sensor_rings for r in rings])
+    origin = choose_origin(all_pts)
+    targets = tuple(_area(obj, rings, origin) for obj, rings in target_rings)
+    sensors = tuple(_area(obj, rings, origin, with_height=True) for obj, rings in sensor_rings)
+
+    vertices, faces, occluders = occluder_mesh(depsgraph)
+    vertices = vertices - origin
+    warnings: list[str] = []
+    if not occluders:
+        warnings.append(
+            f"{source}: no occluder in the scene - flat nothing: targets lie on a "
+            "plane at the curves' height and nothing blocks the view"
+        )
+    return SceneModel(
+        vertices=vertices,
+        faces=faces,
+        occluders=tuple(occluders),
+        targets=targets,
+        sensor_areas=sensors,
+        origin=origin,
+        source=source,
+        warnings=tuple(warnings),
+    )
+
+
+def _area(obj: bpy.types.Object, rings: list[F64], origin: F64, with_height: bool = False) -> Area:
+    local = [r - origin for r in rings]
+    height = None
+    if with_height and names.HEIGHT_PROP in obj:
+        raw = obj[names.HEIGHT_PROP]
+        if not isinstance(raw, (int, float)) or not math.isfinite(raw) or raw < 0:
+            raise SceneContractError(
+                f"{obj.name}: custom property {names.HEIGHT_PROP} must be a number >= 0, "
+                f"got {raw!r}"
+            )
+        height = float(raw)
+    z = float(np.mean(np.concatenate(local)[:, 2]))
+    return Area(obj.name, area_from_rings(obj.name, local), z, height)
+
+
+def curve_rings(obj: bpy.types.Object) -> list[F64]:
+    """World-space rings (K, 3) of a curve object, one per spline.
+
+    POLY splines give their points; BEZIER splines are sampled with the curve's
+    resolution as Blender draws them. Open splines and NURBS raise SceneContractError.
+    """
+    mat = np.array(obj.matrix_world)
+    rings = []
+    for k, spline in enumerate(obj.data.splines):
+        label = obj.name if len(obj.data.splines) == 1 else f"{obj.name} (spline {k + 1})"
+        if spline.type == "POLY":
+            pts = np.array([p.co[:3] for p in spline.points], dtype=float)
+        elif spline.type == "BEZIER":
+            pts = _bezier_points(spline)
+        else:
+            raise SceneContractError(
+                f"{label}: {spline.type} splines are not supported; convert the curve "
+                "to Poly or Bezier"
+            )
+        closed_by_points = len(pts) > 2 and np.allclose(pts[0], pts[-1])
+        if not (spline.use_cyclic_u or closed_by_points):
+            raise SceneContractError(f"{label}: curve is open; close it (Toggle Cyclic, Alt+C)")
+        rings.append(pts @ mat[:3, :3].T + mat[:3, 3])
+    return rings
+
+
+def _bezier_points(spline: bpy.types.Spline) -> F64:
+    """Points along a Bezier spline, ``resolution_u`` per segment, closing if cyclic."""
+    bp = spline.bezier_points
+    n = len(bp)
+    if n < 2:
+        return np.array([p.co[:] for p in bp], dtype=float)
+    res = max(int(spline.resolution_u), 1)
+    t = np.linspace(0.0, 1.0, res, endpoint=False)[:, None]
+    segs = range(n if spline.use_cyclic_u else n - 1)
+    out = []
+    for i in segs:
+        a, b = bp[i], bp[(i + 1) % n]
+        p0, p1 = np.array(a.co), np.array(a.handle_right)
+        p2, p3 = np.array(b.handle_left), np.array(b.co)
+        out.append(
+            (1 - t) ** 3 * p0 + 3 * (1 - t) ** 2 * t * p1 + 3 * (1 - t) * t**2 * p2 + t**3 * p3
+        )
+    if not spline.use_cyclic_u:
+        out.append(np.array([bp[n - 1].co[:]]))
+    return np.concatenate(out)
+
+
+def occluder_mesh(depsgraph: bpy.types.Depsgraph) -> tuple[F64, NDArray[np.int32], list[str]]:
+    """All occluding triangles in world metres: vertices (V, 3), faces (F, 3), names."""
+    verts: list[F64] = []
+    faces: list[NDArray[np.int32]] = []
+    used: list[str] = []
+    offset = 0
+    for inst in depsgraph.object_instances:
+        obj = inst.instance_object if inst.is_instance else inst.object
+        if obj is None or obj.type not in _GEOMETRY_TYPES:
+            continue
+        orig = obj.original
+        if not inst.is_instance and not orig.visible_get():
+            continue
+        if area_role(orig) is not None or orig.get(names.IGNORE_PROP) or in_results(orig):
+            continue
+        v, f = _triangles(inst.object, np.array(inst.matrix_world))
+        if len(f) == 0:
+            continue
+        verts.append(v)
+        faces.append(f + offset)
+        offset += len(v)
+        if orig.name not in used:
+            used.append(orig.name)
+    if not faces:
+        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int32), []
+    return np.concatenate(verts), np.concatenate(faces).astype(np.int32), used
+
+
+def _triangles(eval_obj: bpy.types.Object, matrix: F64) -> tuple[F64, NDArray[np.int32]]:
+    """World vertices (V, 3) and triangles (F, 3) of one evaluated object; degenerate
+    (zero-area) triangles dropped."""
+    mesh = eval_obj.to_mesh()
+    try:
+        mesh.calc_loop_triangles()
+        co = np.empty(len(mesh.vertices) * 3, dtype=np.float64)
+        mesh.vertices.foreach_get("co", co)
+        tri = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
+        mesh.loop_triangles.foreach_get("vertices", tri)
+    finally:
+        eval_obj.to_mesh_clear()
+    v = co.reshape(-1, 3) @ matrix[:3, :3].T + matrix[:3, 3]
+    f = tri.reshape(-1, 3)
+    if len(f):
+        e1 = v[f[:, 1]] - v[f[:, 0]]
+        e2 = v[f[:, 2]] - v[f[:, 0]]
+        f = f[np.linalg.norm(np.cross(e1, e2), axis=1) > 1e-12]
+    return v, f

@@ -1,0 +1,95 @@
+"""Command-line parsing and dispatch; exit codes 0 (done), 2 (bad input), 130 (Ctrl-C).
+
+A user mistake (``AutoscoopError``) prints one line ``error: <object>: <problem>`` on
+stderr and writes nothing; warnings print as ``warning: ...`` and the job goes on.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+SAMPLES = REPO / "sample_blends"
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that reports a bad command line as a one-line error, exit code 2."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(2, f"error: {message} (see {self.prog} --help)\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="python -m headless", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    cov = sub.add_parser("coverage", help="coverage of a set of sensors on a scene")
+    cov.add_argument("scene", nargs="?", help=".blend file (inside Blender: the open one)")
+    cov.add_argument("--sensors", required=True, help="sensors JSON (see README)")
+    cov.add_argument("--method", default="targeted", choices=("targeted", "pointcloud"))
+    cov.add_argument("--grid", type=float, default=1.0, help="target grid spacing, m")
+    cov.add_argument("--target-height", type=float, default=0.0, help="m above the road")
+    cov.add_argument(
+        "--min-density", type=float, default=None, help="detection threshold, points/m^2"
+    )
+    cov.add_argument(
+        "--oversample", type=int, default=1, help="pointcloud: rays per pattern ray, squared"
+    )
+    cov.add_argument("--alpha", type=float, default=1.0, help="pointcloud: alpha / spacing")
+    cov.add_argument("--out", required=True, help="result JSON")
+    cov.add_argument("--points-csv", help="per-target-point CSV")
+
+    smp = sub.add_parser("samples", help="rebuild the sample .blend files")
+    smp.add_argument("--out-dir", default=str(SAMPLES))
+
+    bench = sub.add_parser("bench", help="benchmarks that print figures")
+    bench.add_argument("what", choices=("coverage",))
+    bench.add_argument("--scene", default=str(SAMPLES / "two_routes.blend"))
+    bench.add_argument("--poses", type=int, default=12, help="poses per method")
+    bench.add_argument("--seed", type=int, default=0)
+    bench.add_argument("--out", help="also write the figures to this JSON file")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(level=logging.WARNING, format="%(levelname)s: %(message)s")
+    handlers: dict[str, Callable[[argparse.Namespace], int]] = {
+        "coverage": _coverage,
+        "samples": _samples,
+        "bench": _bench,
+    }
+    from autoscoop_blender.core.errors import AutoscoopError
+
+    try:
+        return handlers[args.command](args)
+    except AutoscoopError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+def _coverage(args: argparse.Namespace) -> int:
+    from headless import jobs
+
+    return jobs.coverage(args)
+
+
+def _samples(args: argparse.Namespace) -> int:
+    from headless import samples
+
+    for path in samples.build_all(Path(args.out_dir)):
+        print(path)
+    return 0
+
+
+def _bench(args: argparse.Namespace) -> int:
+    from headless import bench
+
+    return bench.coverage(args)

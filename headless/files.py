@@ -1,0 +1,75 @@
+"""Opening .blend files and writing results all-or-nothing."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+import tempfile
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+from typing import Any
+
+from autoscoop_blender.core.errors import InputError
+
+
+def open_blend(path: str | None) -> str:
+    """Open ``path`` in bpy (or keep the file Blender already opened); its path."""
+    import bpy
+
+    if path is None:
+        if bpy.data.filepath:
+            return bpy.data.filepath
+        raise InputError("no scene given: pass a .blend file")
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"{path}: file not found")
+    try:
+        bpy.ops.wm.open_mainfile(filepath=str(p.resolve()))
+    except RuntimeError:
+        raise InputError(f"{path}: not a readable .blend file") from None
+    return str(p)
+
+
+def load_scene(path: str | None):
+    """Open a .blend and return its (SceneModel, BVHCaster)."""
+    from autoscoop_blender.scene.bvh import BVHCaster
+    from autoscoop_blender.scene.extract import extract_scene
+
+    open_blend(path)
+    scene = extract_scene()
+    return scene, BVHCaster.from_scene(scene)
+
+
+def json_text(data: Any) -> str:
+    return json.dumps(data, indent=2, allow_nan=False) + "\n"
+
+
+def csv_text(header: Sequence[str], rows: Iterable[Sequence[Any]]) -> str:
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(header)
+    writer.writerows(rows)
+    return buf.getvalue()
+
+
+def write_files(contents: dict[Path, str | bytes]) -> None:
+    """Write every file or none: all go to temporary files first, then are renamed.
+
+    A failure before the renames leaves the destination untouched.
+    """
+    staged: list[tuple[str, Path]] = []
+    try:
+        for path, data in contents.items():
+            path.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+            with os.fdopen(fd, "wb") as f:
+                f.write(data.encode("utf-8") if isinstance(data, str) else data)
+            staged.append((tmp, path))
+        for tmp, path in staged:
+            os.replace(tmp, path)
+        staged = []
+    finally:
+        for tmp, _ in staged:
+            Path(tmp).unlink(missing_ok=True)

@@ -1,0 +1,63 @@
+"""Analytic test scenes for the core: flat ground, boxes, no Blender."""
+
+from __future__ import annotations
+
+import numpy as np
+import shapely
+
+from autoscoop_blender.core.grid import GroundGrid
+from autoscoop_blender.core.raycast import BoxCaster
+from autoscoop_blender.core.scene_model import Area, SceneModel
+
+# Two triangles per face of a unit cube, corners indexed by bits (x, y, z).
+_CUBE_FACES = np.array(
+    [
+        (0, 2, 6),
+        (0, 6, 4),
+        (1, 5, 7),
+        (1, 7, 3),
+        (0, 4, 5),
+        (0, 5, 1),
+        (2, 3, 7),
+        (2, 7, 6),
+        (0, 1, 3),
+        (0, 3, 2),
+        (4, 6, 7),
+        (4, 7, 5),
+    ]
+)
+
+
+def box_mesh(boxes):
+    """Vertices (8B, 3) and triangles (12B, 3) of axis-aligned boxes [(lo, hi), ...]."""
+    verts, faces = [], []
+    for k, (lo, hi) in enumerate(boxes):
+        lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+        bits = np.array([[(i >> 2) & 1, (i >> 1) & 1, i & 1] for i in range(8)])
+        verts.append(lo + bits * (hi - lo))
+        faces.append(_CUBE_FACES + 8 * k)
+    if not boxes:
+        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int32)
+    return np.concatenate(verts), np.concatenate(faces).astype(np.int32)
+
+
+def flat_scene(target=(-100.0, -100.0, 100.0, 100.0), sensor=(-1.0, -1.0, 1.0, 1.0), boxes=()):
+    """A SceneModel: one box target, one box sensor area, the boxes as occluders.
+
+    The ground itself is the implicit floor at z = 0 (no occluder under the boxes).
+    """
+    vertices, faces = box_mesh(list(boxes))
+    return SceneModel(
+        vertices=vertices,
+        faces=faces,
+        occluders=tuple(f"Box{k}" for k in range(len(boxes))),
+        targets=(Area("Target", shapely.box(*target)),),
+        sensor_areas=(Area("SensorArea", shapely.box(*sensor)),),
+    )
+
+
+def flat_grid(spacing=0.5, boxes=(), reach=80.0, **scene_kw):
+    """(grid, caster) on flat ground z = 0 with optional axis-aligned boxes [(lo, hi)]."""
+    caster = BoxCaster(boxes, ground_z=0.0)
+    scene = flat_scene(boxes=boxes, **scene_kw)
+    return GroundGrid(scene, caster, spacing, reach_m=reach), caster

@@ -1,0 +1,58 @@
+"""Areas from curve rings: even-odd, validation, local origin."""
+
+import numpy as np
+import pytest
+
+from autoscoop_blender.core.errors import SceneContractError
+from autoscoop_blender.core.scene_model import area_from_rings, choose_origin
+
+
+def ring(x0, y0, x1, y1, z=0.0):
+    return np.array([(x0, y0, z), (x1, y0, z), (x1, y1, z), (x0, y1, z)], dtype=float)
+
+
+def test_even_odd_gives_holes_and_islands():
+    outer, hole, island = ring(0, 0, 100, 100), ring(20, 20, 80, 80), ring(40, 40, 60, 60)
+    geom = area_from_rings("Target_Loop", [outer, hole, island])
+    assert geom.area == pytest.approx(100**2 - 60**2 + 20**2)
+    assert not geom.contains(__import__("shapely").Point(30, 30))
+    assert geom.contains(__import__("shapely").Point(50, 50))
+
+
+def test_closing_point_and_duplicates_are_tolerated():
+    r = ring(0, 0, 10, 10)
+    closed = np.vstack([r, r[:1], r[:1]])
+    assert area_from_rings("T", [closed]).area == pytest.approx(100.0)
+
+
+def test_a_ring_following_terrain_is_still_in_the_xy_plane():
+    r = ring(0, 0, 200, 20)
+    r[:, 2] = [0.0, 6.0, 4.0, -2.0]  # a road over a hill
+    assert area_from_rings("T", [r]).area == pytest.approx(4000.0)
+
+
+@pytest.mark.parametrize(
+    "rings, message",
+    [
+        ([np.array([(0, 0, 0), (10, 10, 0), (10, 0, 0), (0, 10, 0)], float)], "crosses itself"),
+        (
+            [np.array([(0, 0, 0), (10, 0, 0), (10, 0, 10), (0, 0, 10)], float)],
+            "not in the XY plane",
+        ),
+        ([np.array([(0, 0, 0), (10, 0, 0)], float)], "at least 3 points"),
+        ([np.array([(0, 0, 0), (5, 0, 0), (10, 0, 0)], float)], "encloses no area"),
+        ([ring(0, 0, 10, 10), ring(0, 0, 10, 10)], "empty"),
+        ([], "no splines"),
+    ],
+)
+def test_bad_rings_name_the_curve(rings, message):
+    with pytest.raises(SceneContractError, match=rf"^Target_X.*{message}"):
+        area_from_rings("Target_X", rings)
+
+
+def test_local_origin_only_for_large_coordinates():
+    small = np.array([[0, 0, 0], [250, 250, 10]], float)
+    assert np.array_equal(choose_origin(small), np.zeros(3))
+    big = small + [500_000.0, 6_400_000.0, 0.0]
+    origin = choose_origin(big)
+    assert origin[2] == 0 and np.abs(big[:, :2] - origin[:2]).max() < 1000
