@@ -57,8 +57,12 @@ def csv_text(header: Sequence[str], rows: Iterable[Sequence[Any]]) -> str:
 def write_files(contents: dict[Path, str | bytes]) -> None:
     """Write every file or none: all go to temporary files first, then are renamed.
 
-    A failure before the renames leaves the destination untouched.
+    A destination that cannot be a file is refused before anything is written, and
+    a failure while staging leaves every destination untouched.
     """
+    for path in contents:
+        if path.is_dir():
+            raise InputError(f"{path}: is a directory, not a file to write")
     staged: list[tuple[str, Path]] = []
     try:
         for path, data in contents.items():

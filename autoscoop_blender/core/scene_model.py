@@ -177,3 +177,18 @@ def _polygonal_part(geom: BaseGeometry) -> BaseGeometry:
         return geom
     parts = [g for g in getattr(geom, "geoms", []) if isinstance(g, (Polygon, MultiPolygon))]
     return shapely.union_all(parts) if parts else Polygon()
+
+
+def random_points(geom: BaseGeometry, n: int, rng: np.random.Generator) -> NDArray[np.float64]:
+    """(n, 2) points drawn uniformly inside a polygonal geometry (rejection sampling)."""
+    minx, miny, maxx, maxy = geom.bounds
+    fill = geom.area / max((maxx - minx) * (maxy - miny), 1e-12)
+    out: list[NDArray[np.float64]] = []
+    got = 0
+    while got < n:
+        batch = max(16, int((n - got) / max(fill, 1e-3) * 1.2))
+        xy = rng.uniform((minx, miny), (maxx, maxy), (batch, 2))
+        xy = xy[shapely.contains_xy(geom, xy[:, 0], xy[:, 1])]
+        out.append(xy)
+        got += len(xy)
+    return np.concatenate(out)[:n]
