@@ -21,3 +21,4 @@ HEIGHT_PROP = "height_m"  # on a sensor area: mast height there, metres
 
 # Everything AutoSCOOP creates goes into this collection and nowhere else.
 RESULTS_COLLECTION = "AutoSCOOP Results"
+RESULTS_TAG = "autoscoop_results"  # set on it, so it is found if Blender renames it

@@ -43,6 +43,19 @@ def build_parser() -> argparse.ArgumentParser:
     cov.add_argument("--out", required=True, help="result JSON")
     cov.add_argument("--points-csv", help="per-target-point CSV")
 
+    opt = sub.add_parser("optimize", help="place sensors with the evolution strategy")
+    opt.add_argument(
+        "scene",
+        nargs="?",
+        help=".blend file (default: the file Blender opened, else sample_blends/two_routes)",
+    )
+    opt.add_argument("--optimizer", default="es", help="es (the paper's evolution strategy)")
+    opt.add_argument("--method", choices=("targeted", "pointcloud"), help="coverage method")
+    opt.add_argument("--seed", type=int, help="random seed (default 0)")
+    opt.add_argument("--config", help="TOML file of settings and model")
+    opt.add_argument("--out-dir", default="out", help="output folder (default out/)")
+    opt.add_argument("--resume", action="store_true", help="go on from the checkpoint")
+
     smp = sub.add_parser("samples", help="rebuild the sample .blend files")
     smp.add_argument("--out-dir", default=str(SAMPLES))
 
@@ -60,6 +73,7 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s: %(message)s")
     handlers: dict[str, Callable[[argparse.Namespace], int]] = {
         "coverage": _coverage,
+        "optimize": _optimize,
         "samples": _samples,
         "bench": _bench,
     }
@@ -79,6 +93,12 @@ def _coverage(args: argparse.Namespace) -> int:
     from headless import jobs
 
     return jobs.coverage(args)
+
+
+def _optimize(args: argparse.Namespace) -> int:
+    from headless import jobs
+
+    return jobs.optimize(args)
 
 
 def _samples(args: argparse.Namespace) -> int:

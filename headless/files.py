@@ -70,6 +70,7 @@ def write_files(contents: dict[Path, str | bytes]) -> None:
             fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
             with os.fdopen(fd, "wb") as f:
                 f.write(data.encode("utf-8") if isinstance(data, str) else data)
+            os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; match open()
             staged.append((tmp, path))
         for tmp, path in staged:
             os.replace(tmp, path)
@@ -77,3 +78,9 @@ def write_files(contents: dict[Path, str | bytes]) -> None:
     finally:
         for tmp, _ in staged:
             Path(tmp).unlink(missing_ok=True)
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask

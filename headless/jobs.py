@@ -4,11 +4,21 @@ from __future__ import annotations
 
 import argparse
 import sys
+import tempfile
+import tomllib
+from dataclasses import replace
 from pathlib import Path
 
 from autoscoop_blender.core.analysis import CoverageSettings, evaluate_sensors
+from autoscoop_blender.core.errors import InputError
+from autoscoop_blender.core.optimize import OptimizationResult, OptimizationRun, OptimizeSettings
+from autoscoop_blender.core.report_png import render_png
+from autoscoop_blender.core.reports import result_dict, sensors_csv, sensors_geojson
 from autoscoop_blender.core.sensor_file import read_sensors
+from autoscoop_blender.core.sensors import PAPER_CAMERA, SensorModel
+from headless.checkpoint import Checkpoint, scene_fingerprint
 from headless.files import csv_text, json_text, load_scene, write_files
+from headless.progress import ProgressBar
 
 POINTS_HEADER = ("x", "y", "z", "n_visible", "n_covered", "best_density")
 
@@ -40,3 +50,119 @@ def coverage(args: argparse.Namespace) -> int:
         f"{result.rays_cast} rays, {result.wall_s:.2f} s -> {args.out}"
     )
     return 0
+
+
+def optimize(args: argparse.Namespace) -> int:
+    """``optimize``: the ES on a scene; result files in the output folder."""
+    settings, model = load_config(args.config)
+    overrides = {"method": args.method, "seed": args.seed}
+    settings = replace(settings, **{k: v for k, v in overrides.items() if v is not None})
+    settings = settings.validated()
+    if args.optimizer != "es":
+        raise InputError(f"--optimizer {args.optimizer!r}: only 'es' is available")
+    out_dir = Path(args.out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(f"{out_dir}: exists and is not a folder")
+
+    scene, caster = load_scene(args.scene or default_scene())
+    for w in scene.warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    checkpoint = Checkpoint(
+        out_dir,
+        {
+            "scene": scene.source,
+            "scene_fingerprint": scene_fingerprint(scene),
+            "model": model.to_dict(),
+            "settings": settings.to_dict(),
+        },
+    )
+    resume = checkpoint.resume() if args.resume else []
+    if not args.resume:
+        checkpoint.start()
+    run = OptimizationRun(scene, caster, model, settings, resume, on_fixed=checkpoint.append)
+    if resume:
+        print(f"resuming after {len(resume)} fixed sensor(s)", file=sys.stderr)
+    bar = ProgressBar()
+    try:
+        for progress in run.steps():
+            bar.update(progress)
+    except KeyboardInterrupt:
+        bar.close()
+        print(
+            f"interrupted: {len(run.sensors)} sensor(s) kept in {checkpoint.path}; "
+            "run again with --resume to go on",
+            file=sys.stderr,
+        )
+        return 130
+    bar.close()
+    result = run.result()
+    write_results(result, out_dir)
+    m = result.metrics
+    print(
+        f"{m['sensors']} sensors on {m['masts']} masts cover {m['coverage_fraction']:.2%} "
+        f"in {m['wall_s']:.1f} s ({result.stop_reason}) -> {out_dir}"
+    )
+    return 0
+
+
+def default_scene() -> str | None:
+    """The file Blender opened (None: keep it), else the bundled two_routes sample."""
+    import bpy
+
+    from headless.cli import SAMPLES
+
+    return None if bpy.data.filepath else str(SAMPLES / "two_routes.blend")
+
+
+def load_config(path: str | None) -> tuple[OptimizeSettings, SensorModel]:
+    """Settings and sensor model from a TOML file (defaults without one).
+
+    Top-level keys are ``OptimizeSettings`` fields plus ``model`` (a preset name or a
+    table of model keys); tables ``[es]`` and ``[fitness]`` hold those parameters.
+    """
+    if path is None:
+        return OptimizeSettings(), PAPER_CAMERA
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"{path}: config file not found")
+    try:
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        raise InputError(f"{p.name}: not valid TOML ({e})") from None
+    model = SensorModel.from_spec(data.pop("model", "paper_camera"), f"{p.name}: model")
+    return OptimizeSettings.from_mapping(data, p.name).validated(), model
+
+
+def write_results(result: OptimizationResult, out_dir: Path) -> None:
+    """result.json, sensors.csv, sensors.geojson, coverage.png and result.blend, all
+    or none; result.blend holds the scene with the results collection."""
+    import bpy
+
+    from autoscoop_blender.scene.spawn import spawn_results
+
+    placement = result.placement()
+    blender = {"blender": bpy.app.version_string}
+    files: dict[Path, str | bytes] = {
+        out_dir / "result.json": json_text(result_dict(result, placement, blender)),
+        out_dir / "sensors.csv": sensors_csv(placement),
+        out_dir / "sensors.geojson": json_text(sensors_geojson(placement)),
+        out_dir / "coverage.png": render_png(placement),
+    }
+    spawn_results(bpy.context.scene, placement, ground_z=world_ground(result))
+    out_dir.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=out_dir) as tmp:
+        blend = Path(tmp) / "result.blend"
+        bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True, compress=True)
+        files[out_dir / "result.blend"] = blend.read_bytes()
+    write_files(files)
+
+
+def world_ground(result: OptimizationResult):
+    """Terrain height under world points (K, 2), for draping footprints."""
+
+    def ground_z(xy_world):
+        local = result.scene.to_local(xy_world)
+        z, _ = result.grid.drop(local)
+        return z + result.scene.origin[2]
+
+    return ground_z

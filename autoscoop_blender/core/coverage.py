@@ -32,7 +32,7 @@ from shapely.geometry.base import BaseGeometry
 from .alpha import Triangulation, alpha_mask, triangulate, union_triangles
 from .grid import GroundGrid
 from .raycast import RayCaster
-from .sensors import SensorModel, SensorPose, frame
+from .sensors import SensorModel, SensorPose, frame, surface_factor
 
 I64 = NDArray[np.int64]
 F64 = NDArray[np.float64]
@@ -82,6 +82,81 @@ def place(
     return SensorPose(x, y, float(z[0]) + height_m, height_m, pitch_deg, yaw_deg)
 
 
+@dataclass(frozen=True)
+class SightLines:
+    """Sight lines from one sensor position to K cells; independent of orientation.
+
+    d, dist: (K, 3) unit directions and (K,) distances to the target points (the
+    cell's surface point raised by the target height); gd: (K, 3) unit directions
+    to the surface point itself, where the pattern's density is measured; surface:
+    (K,) its orientation-free density factor (``sensors.surface_factor``).
+    """
+
+    d: F64
+    dist: F64
+    gd: F64
+    surface: F64
+
+    def subset(self, rows: NDArray[np.int_]) -> SightLines:
+        d = self.d[rows]
+        gd = d if self.gd is self.d else self.gd[rows]  # no target height: one array
+        return SightLines(d, self.dist[rows], gd, self.surface[rows])
+
+
+def sight_lines(grid: GroundGrid, s: F64, cells: I64) -> SightLines:
+    """Sight lines from position ``s`` (3,) to ``cells`` (dropping them if needed)."""
+    z, normals = grid.surface(cells)
+    ground = np.column_stack([grid.xy(cells), z])
+    gvec = ground - s
+    gdist = np.linalg.norm(gvec, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        gd = gvec / gdist[:, None]
+    surface = surface_factor(gd, gdist, normals)
+    if grid.target_height_m == 0.0:
+        return SightLines(gd, gdist, gd, surface)
+    vec = gvec + (0.0, 0.0, grid.target_height_m)
+    dist = np.linalg.norm(vec, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        d = vec / dist[:, None]
+    return SightLines(d, dist, gd, surface)
+
+
+def clear_sight(
+    caster: RayCaster, s: F64, lines: SightLines, rows: NDArray[np.int_]
+) -> NDArray[np.bool_]:
+    """(len(rows),) whether nothing blocks the sight line to each of ``rows``; one ray
+    each, stopping just short of the point."""
+    if len(rows) == 0:
+        return np.zeros(0, dtype=bool)
+    limit = lines.dist[rows] * (1 - 1e-7) - SIGHT_MARGIN_M
+    hit = caster.cast(np.broadcast_to(s, (len(rows), 3)), lines.d[rows], limit)
+    return ~np.isfinite(hit)
+
+
+def to_sensor(d: F64, rot: F64) -> F64:
+    """Directions (K, 3) in the sensor frame of ``rot`` (rows forward, left, up).
+
+    Written out per component (not a matrix product) so that every row's result is
+    the same whatever rows it is computed with: the cached and the direct evaluators
+    must agree to the last bit on which points they cover.
+    """
+    x, y, z = d[:, 0], d[:, 1], d[:, 2]
+    out = np.empty_like(d)
+    for k in range(3):
+        out[:, k] = rot[k, 0] * x + rot[k, 1] * y + rot[k, 2] * z
+    return out
+
+
+def view(model: SensorModel, rot: F64, lines: SightLines) -> tuple[NDArray[np.bool_], F64]:
+    """(K,) whether each target point lies inside range and FoV, and (K,) the
+    pattern's density on the surface under it (points/m^2, sensor units)."""
+    with np.errstate(invalid="ignore"):
+        in_view = (lines.dist > 1e-9) & (lines.dist <= model.range_m)
+        in_view &= model.in_fov(to_sensor(lines.d, rot))
+        density = model.rays_per_sr(to_sensor(lines.gd, rot)) * lines.surface
+    return in_view, np.where(in_view, density, 0.0)
+
+
 class TargetedEvaluator:
     """One sight ray per target point that can count (see module docstring)."""
 
@@ -100,40 +175,15 @@ class TargetedEvaluator:
     ) -> SensorCoverage:
         grid = self.grid
         s = pose.position
-        rot = frame(pose.pitch_deg, pose.yaw_deg)
         cells, ordinal = _cells_in_reach(grid, s, model.range_m, outside_band_m)
         is_target = ordinal >= 0
-
-        z, normals = grid.surface(cells)
-        ground = np.column_stack([grid.xy(cells), z])
-        # Sight lines go to the target point (raised by the target height) ...
-        point = ground + (0.0, 0.0, grid.target_height_m)
-        vec = point - s
-        dist = np.linalg.norm(vec, axis=1)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            d = vec / dist[:, None]
-        in_view = (dist > 1e-9) & (dist <= model.range_m)
-        in_view[in_view] = model.in_fov(d[in_view] @ rot.T)
-        # ... while the density is the pattern's on the ground surface under it.
-        gvec = ground - s
-        gdist = np.linalg.norm(gvec, axis=1)
-        dense = np.zeros(len(cells), dtype=bool)
-        density = np.zeros(len(cells))
-        if in_view.any():
-            gd = gvec[in_view] / np.maximum(gdist[in_view], 1e-9)[:, None]
-            density[in_view] = model.ground_density(
-                gd @ rot.T, gd, gdist[in_view], normals[in_view]
-            )
-            dense = in_view & (density >= model.min_density_per_m2)
-
+        lines = sight_lines(grid, s, cells)
+        in_view, density = view(model, frame(pose.pitch_deg, pose.yaw_deg), lines)
+        dense = in_view & (density >= model.min_density_per_m2)
         ask = dense | (in_view & is_target) if visibility else dense
-        clear = np.zeros(len(cells), dtype=bool)
         idx = np.flatnonzero(ask)
-        if len(idx):
-            origins = np.broadcast_to(s, (len(idx), 3))
-            limit = dist[idx] * (1 - 1e-7) - SIGHT_MARGIN_M
-            hit = self.caster.cast(origins, d[idx], limit)
-            clear[idx] = ~np.isfinite(hit)
+        clear = np.zeros(len(cells), dtype=bool)
+        clear[idx] = clear_sight(self.caster, s, lines, idx)
 
         covered = clear & dense
         cov_t = covered & is_target

@@ -235,6 +235,25 @@ class SensorModel:
         fwd = np.clip(d_sensor[:, 0], 1e-12, None)
         return self.n_rays / (4 * math.tan(ha) * math.tan(va) * fwd**3)
 
+    def max_rays_per_sr(self) -> float:
+        """The pattern's highest rays per steradian anywhere in the FoV (at its edge)."""
+        ha, va = self._half_fov()
+        if self.pattern == "angular":
+            return self.n_rays / (4 * ha * va * math.cos(va))
+        tu, tv = math.tan(ha), math.tan(va)
+        cos_corner = 1.0 / math.sqrt(1.0 + tu * tu + tv * tv)
+        return self.n_rays / (4 * tu * tv * cos_corner**3)
+
+    def max_off_axis_deg(self) -> float:
+        """Largest angle between the optical axis and any direction in the FoV, deg."""
+        ha, va = self._half_fov()
+        if self.pattern == "angular":
+            if ha >= math.pi / 2:
+                return 90.0 + math.degrees(va)
+            return math.degrees(math.acos(math.cos(ha) * math.cos(va)))
+        tu, tv = math.tan(ha), math.tan(va)
+        return math.degrees(math.acos(1.0 / math.sqrt(1.0 + tu * tu + tv * tv)))
+
     def ground_density(
         self,
         d_sensor: NDArray[np.float64],
@@ -245,9 +264,25 @@ class SensorModel:
         """(N,) points per m^2 (XY projection) on surfaces with unit ``normals`` (N, 3),
         hit along unit directions (sensor frame ``d_sensor``, world ``d_world``) at
         distances ``dist`` (N,) m."""
-        cos_i = np.abs(np.einsum("ij,ij->i", d_world, normals))
-        nz = np.clip(np.abs(normals[:, 2]), _MIN_NZ, None)
-        return self.rays_per_sr(d_sensor) * cos_i / (np.maximum(dist, 1e-9) ** 2 * nz)
+        return self.rays_per_sr(d_sensor) * surface_factor(d_world, dist, normals)
+
+
+def surface_factor(
+    d_world: NDArray[np.float64], dist: NDArray[np.float64], normals: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """(N,) m^2 of XY-projected ground per steradian, inverted: |d.n| / (r^2 |n_z|).
+
+    The orientation-free part of the density: points/m^2 = rays/sr x this factor.
+    Written per component (not einsum) so each row's value does not depend on the
+    other rows: cached and direct evaluators must agree to the last bit.
+    """
+    cos_i = np.abs(
+        d_world[:, 0] * normals[:, 0]
+        + d_world[:, 1] * normals[:, 1]
+        + d_world[:, 2] * normals[:, 2]
+    )
+    nz = np.clip(np.abs(normals[:, 2]), _MIN_NZ, None)
+    return cos_i / (np.maximum(dist, 1e-9) ** 2 * nz)
 
 
 # --- presets ---------------------------------------------------------------------

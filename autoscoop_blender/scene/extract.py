@@ -38,9 +38,20 @@ def area_role(obj: bpy.types.Object) -> str | None:
     return None
 
 
-def in_results(obj: bpy.types.Object) -> bool:
-    """Whether the object belongs to AutoSCOOP's own results collection."""
-    return any(c.name == names.RESULTS_COLLECTION for c in obj.users_collection)
+def results_collections() -> set[str]:
+    """Names of AutoSCOOP's results collection and every collection inside it."""
+    out: set[str] = set()
+    for coll in bpy.data.collections:
+        if coll.name == names.RESULTS_COLLECTION or coll.get(names.RESULTS_TAG):
+            out.add(coll.name)
+            out.update(c.name for c in coll.children_recursive)
+    return out
+
+
+def in_results(obj: bpy.types.Object, results: set[str] | None = None) -> bool:
+    """Whether the object belongs to AutoSCOOP's own results (at any depth)."""
+    results = results_collections() if results is None else results
+    return any(c.name in results for c in obj.users_collection)
 
 
 def extract_scene(
@@ -55,11 +66,12 @@ def extract_scene(
     depsgraph = depsgraph or bpy.context.evaluated_depsgraph_get()
     source = bpy.data.filepath and Path(bpy.data.filepath).name or scene.name
 
+    results = results_collections()
     target_rings: list[tuple[bpy.types.Object, list[F64]]] = []
     sensor_rings: list[tuple[bpy.types.Object, list[F64]]] = []
     for obj in scene.objects:
         role = area_role(obj)
-        if role is None or in_results(obj):
+        if role is None or in_results(obj, results):
             continue
         if obj.type != "CURVE":
             kind = "target area" if role == names.ROLE_TARGET else "sensor area"
@@ -84,7 +96,7 @@ def extract_scene(
     targets = tuple(_area(obj, rings, origin) for obj, rings in target_rings)
     sensors = tuple(_area(obj, rings, origin, with_height=True) for obj, rings in sensor_rings)
 
-    vertices, faces, occluders = occluder_mesh(depsgraph)
+    vertices, faces, occluders = occluder_mesh(depsgraph, results)
     vertices = vertices - origin
     warnings: list[str] = []
     if not occluders:
@@ -167,7 +179,9 @@ def _bezier_points(spline: bpy.types.Spline) -> F64:
     return np.concatenate(out)
 
 
-def occluder_mesh(depsgraph: bpy.types.Depsgraph) -> tuple[F64, NDArray[np.int32], list[str]]:
+def occluder_mesh(
+    depsgraph: bpy.types.Depsgraph, results: set[str]
+) -> tuple[F64, NDArray[np.int32], list[str]]:
     """All occluding triangles in world metres: vertices (V, 3), faces (F, 3), names."""
     verts: list[F64] = []
     faces: list[NDArray[np.int32]] = []
@@ -180,7 +194,7 @@ def occluder_mesh(depsgraph: bpy.types.Depsgraph) -> tuple[F64, NDArray[np.int32
         orig = obj.original
         if not inst.is_instance and not orig.visible_get():
             continue
-        if area_role(orig) is not None or orig.get(names.IGNORE_PROP) or in_results(orig):
+        if area_role(orig) is not None or orig.get(names.IGNORE_PROP) or in_results(orig, results):
             continue
         v, f = _triangles(inst.object, np.array(inst.matrix_world))
         if len(f) == 0:

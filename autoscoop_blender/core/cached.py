@@ -1,0 +1,177 @@
+"""``targeted`` coverage with sight lines cached per mast position.
+
+Whether a target point is visible from a mast does not depend on where the sensor
+looks, only on where it stands. So for each (model, position, height) every sight
+ray is cast at most once, and only when some evaluated orientation needs it (the
+point lies in view and over the threshold); its answer is kept. Orientations after
+that are pure numpy. An optimizer that revisits positions (the ES does, on a
+lattice) casts each ray once instead of once per candidate, and never casts a ray to
+a point no candidate looked at.
+
+Two stores per position: the sight-line geometry of the points some allowed
+orientation could cover (in range, dense enough at the pattern's densest direction,
+inside the depression band the pitch limits allow) is plain numpy and kept in a
+bounded LRU, recomputed when evicted; the ray answers are one byte per point and
+kept for the whole run.
+
+Answers are identical, bit for bit, to ``TargetedEvaluator`` for poses within the
+pitch limits: both use the same per-row arithmetic (``sight_lines``, ``view``,
+``clear_sight``) on the same rows.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import OrderedDict
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .coverage import (
+    SensorCoverage,
+    SightLines,
+    TargetedEvaluator,
+    _cells_in_reach,
+    clear_sight,
+    sight_lines,
+    view,
+)
+from .grid import GroundGrid
+from .raycast import RayCaster
+from .sensors import SensorModel, SensorPose, frame
+
+I64 = NDArray[np.int64]
+
+
+@dataclass(frozen=True)
+class _Reach:
+    """The cells a position might cover with some allowed orientation, and the
+    orientation-free geometry of their sight lines."""
+
+    cells: I64
+    ordinal: I64
+    lines: SightLines
+
+
+# Ray answers per row of a _Reach: not asked yet, blocked, clear.
+_UNKNOWN, _BLOCKED, _CLEAR = -1, 0, 1
+
+
+class CachedTargetedEvaluator:
+    """``targeted`` with per-position sight-line caching (same results, fewer rays).
+
+    ``max_rows`` bounds the geometry kept (about 50 bytes a row); the least recently
+    used positions are recomputed when needed again, without casting any ray.
+    """
+
+    method = "targeted"
+
+    def __init__(self, grid: GroundGrid, caster: RayCaster, max_rows: int = 2_000_000) -> None:
+        self.grid = grid
+        self.caster = caster
+        self.max_rows = max_rows
+        self._direct = TargetedEvaluator(grid, caster)
+        self._reach: OrderedDict[tuple, _Reach] = OrderedDict()
+        self._answers: dict[tuple, NDArray[np.int8]] = {}
+        self._rows = 0
+        self.extra_rays = 0  # rays cast outside evaluate() (reachability)
+
+    @property
+    def positions(self) -> int:
+        """Distinct (model, position, band) keys seen so far."""
+        return len(self._answers)
+
+    def evaluate(
+        self,
+        model: SensorModel,
+        pose: SensorPose,
+        outside_band_m: float | None = None,
+        visibility: bool = False,
+    ) -> SensorCoverage:
+        full = outside_band_m is not None and math.isinf(outside_band_m)
+        in_limits = model.pitch_min_deg <= pose.pitch_deg <= model.pitch_max_deg
+        if visibility or full or not in_limits:
+            # Reports and out-of-limit poses: nothing to share, ask directly.
+            return self._direct.evaluate(model, pose, outside_band_m, visibility)
+
+        key = (model, pose.x, pose.y, pose.z, outside_band_m)
+        reach = self._get_reach(key, model, pose.position, outside_band_m)
+        answers = self._answers.setdefault(key, np.full(len(reach.cells), _UNKNOWN, np.int8))
+        in_view, density = view(model, frame(pose.pitch_deg, pose.yaw_deg), reach.lines)
+        need = in_view & (density >= model.min_density_per_m2)
+        ask = np.flatnonzero(need & (answers == _UNKNOWN))
+        clear = clear_sight(self.caster, pose.position, reach.lines, ask)
+        answers[ask] = np.where(clear, _CLEAR, _BLOCKED)
+        covered = need & (answers == _CLEAR)
+        is_target = reach.ordinal >= 0
+        cov_t = covered & is_target
+        return SensorCoverage(
+            pose=pose,
+            model=model,
+            method=self.method,
+            covered=reach.ordinal[cov_t],
+            chi=density[cov_t],
+            visible=None,
+            outside=reach.cells[covered & ~is_target],
+            footprint_m2=None,
+            rays=len(ask),
+            _cells=reach.cells[covered],
+        )
+
+    def reachable(
+        self, model: SensorModel, pose: SensorPose, wanted: NDArray[np.bool_]
+    ) -> NDArray[np.int64]:
+        """Target ordinals among ``wanted`` (N,) bool that some orientation within the
+        pitch limits might cover from the pose's position: in range, dense enough at
+        the pattern's densest direction, in the depression band, in line of sight.
+        An upper bound (the FoV is not tested as a whole); rays only to wanted points.
+        """
+        key = (model, pose.x, pose.y, pose.z, None)
+        reach = self._get_reach(key, model, pose.position, None)
+        answers = self._answers.setdefault(key, np.full(len(reach.cells), _UNKNOWN, np.int8))
+        is_wanted = np.zeros(len(reach.cells), dtype=bool)
+        targets = reach.ordinal >= 0
+        is_wanted[targets] = wanted[reach.ordinal[targets]]
+        ask = np.flatnonzero(is_wanted & (answers == _UNKNOWN))
+        clear = clear_sight(self.caster, pose.position, reach.lines, ask)
+        answers[ask] = np.where(clear, _CLEAR, _BLOCKED)
+        self.extra_rays += len(ask)
+        return reach.ordinal[is_wanted & (answers == _CLEAR)]
+
+    def _get_reach(
+        self, key: tuple, model: SensorModel, s: NDArray[np.float64], outside_band_m: float | None
+    ) -> _Reach:
+        entry = self._reach.get(key)
+        if entry is not None:
+            self._reach.move_to_end(key)
+            return entry
+        entry = self._compute(model, s, outside_band_m)
+        self._reach[key] = entry
+        self._rows += len(entry.cells)
+        while self._rows > self.max_rows and len(self._reach) > 1:
+            _, old = self._reach.popitem(last=False)
+            self._rows -= len(old.cells)
+        return entry
+
+    def _compute(
+        self, model: SensorModel, s: NDArray[np.float64], outside_band_m: float | None
+    ) -> _Reach:
+        cells, ordinal = _cells_in_reach(self.grid, s, model.range_m, outside_band_m)
+        lines = sight_lines(self.grid, s, cells)
+        # Could any allowed orientation cover the point? In range, dense enough at
+        # the pattern's densest direction, within the reachable depression band.
+        reach = math.radians(model.max_off_axis_deg())
+        depression = -np.arcsin(np.clip(lines.d[:, 2], -1.0, 1.0))
+        band = (depression >= math.radians(model.pitch_min_deg) - reach) & (
+            depression <= math.radians(model.pitch_max_deg) + reach
+        )
+        best_density = model.max_rays_per_sr() * lines.surface * (1 + 1e-9)
+        maybe = (
+            (lines.dist > 1e-9)
+            & (lines.dist <= model.range_m)
+            & band
+            & (best_density >= model.min_density_per_m2)
+        )
+        rows = np.flatnonzero(maybe)
+        return _Reach(cells[rows], ordinal[rows], lines.subset(rows))

@@ -1,0 +1,607 @@
+"""The optimization: sensors fixed one at a time by the paper's ES until rho of the
+target is covered, then grouped into masts (Algorithm 1, outer loop).
+
+``OptimizationRun.steps()`` is a generator that yields a ``Progress`` after every
+candidate evaluation, so the Blender operator can time-slice it and the CLI can draw
+a progress bar; both drain the same generator, so the same seed gives the same
+answer everywhere. Each fixed sensor is reported to ``on_fixed`` with the random
+generator's state, which is all a resumed run needs to go on exactly as before.
+
+Stop rules: the covered fraction reaches rho; or ``patience`` searches in a row find
+no pose that adds a single target point (then the uncovered parts are named); or
+``max_sensors`` is reached. The loop never runs forever.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import asdict, dataclass, field, fields, replace
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+import shapely
+from numpy.typing import NDArray
+from scipy import ndimage
+
+from .cached import CachedTargetedEvaluator
+from .coverage import (
+    METHODS,
+    CoverageSummary,
+    PointcloudEvaluator,
+    SensorCoverage,
+    TargetedEvaluator,
+    footprint_polygon,
+    place,
+    summarize,
+)
+from .errors import InputError
+from .es import ESParams, SearchSpace, SensorSearch
+from .fitness import FitnessParams, FixedSensors, fitness
+from .grid import GroundGrid
+from .masts import choose_sites, group_positions
+from .placement import MastRecord, Placement, SensorRecord
+from .raycast import BoxCaster, RayCaster
+from .scene_model import Area, SceneModel
+from .sensors import SensorModel, SensorPose
+
+F64 = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class OptimizeSettings:
+    """Everything that decides the answer (with the scene, the model and the seed).
+
+    position_step_m: lattice of mast positions (None: twice the grid spacing, 2 m by
+    default: finer than a planner needs for a mast, coarse enough that the ES
+    revisits positions and reuses their sight rays). mast_join_m:
+    sensors this close share a mast. patience: searches in a row that add nothing
+    before giving up. max_sensors: None derives a generous cap from the target area.
+    cache: targeted only, cache sight lines per position (same answers, fewer rays).
+    oversample, alpha: pointcloud knobs (see ``coverage.PointcloudEvaluator``).
+    """
+
+    method: str = "targeted"
+    grid_m: float = 1.0
+    target_height_m: float = 0.0
+    rho: float = 0.97
+    seed: int = 0
+    position_step_m: float | None = None
+    mast_join_m: float = 3.0
+    patience: int = 2
+    max_sensors: int | None = None
+    cache: bool = True
+    oversample: int = 1
+    alpha: float = 1.0
+    es: ESParams = field(default_factory=ESParams)
+    fitness: FitnessParams = field(default_factory=FitnessParams)
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_mapping(cls, data: Mapping[str, Any], label: str) -> OptimizeSettings:
+        """Settings from a config mapping (TOML): top-level keys plus [es] and
+        [fitness] tables; unknown keys are an InputError naming ``label``."""
+        data = dict(data)
+        nested: dict[str, Any] = {}
+        for name, kind in (("es", ESParams), ("fitness", FitnessParams)):
+            table = data.pop(name, {})
+            if not isinstance(table, Mapping):
+                raise InputError(f"{label}: [{name}] must be a table")
+            nested[name] = _build(kind, table, f"{label} [{name}]")
+        return _build(cls, {**data, **nested}, label)
+
+    def validated(self) -> OptimizeSettings:
+        if self.method not in METHODS:
+            raise InputError(f"method {self.method!r}: choose one of {', '.join(METHODS)}")
+        checks = [
+            ("grid_m", self.grid_m > 0),
+            ("target_height_m", self.target_height_m >= 0),
+            ("rho", 0 < self.rho <= 1),
+            ("mast_join_m", self.mast_join_m >= 0),
+            ("patience", self.patience >= 1),
+            ("oversample", self.oversample >= 1),
+            ("alpha", self.alpha > 0),
+            ("es.mu", self.es.mu >= 1),
+            ("es.lam", self.es.lam >= 1),
+            ("es.eps", self.es.eps >= 0),
+            ("es.max_epochs", self.es.max_epochs >= 0),
+            ("es.decay", 0 < self.es.decay <= 1),
+            ("fitness.theta_m", self.fitness.theta_m > 0),
+            ("fitness.theta_tau_m", self.fitness.theta_tau_m > 0),
+        ]
+        if self.position_step_m is not None:
+            checks.append(("position_step_m", self.position_step_m > 0))
+        if self.max_sensors is not None:
+            checks.append(("max_sensors", self.max_sensors >= 1))
+        for name, ok in checks:
+            value = _lookup(self, name)
+            if isinstance(value, float) and not math.isfinite(value):
+                ok = False
+            if not ok:
+                raise InputError(f"setting {name} = {value!r} is out of range")
+        return self
+
+
+def _build(kind: type, table: Mapping[str, Any], label: str) -> Any:
+    known = {f.name: f for f in fields(kind)}
+    unknown = sorted(set(table) - set(known))
+    if unknown:
+        raise InputError(f"{label}: unknown setting(s) {', '.join(unknown)}")
+    defaults = kind()
+    for key, value in table.items():
+        want = type(getattr(defaults, key))
+        if key in ("es", "fitness"):
+            continue
+        if want in (int, float) and (
+            isinstance(value, bool) or not isinstance(value, (int, float))
+        ):
+            raise InputError(f"{label}: {key} must be a number, got {value!r}")
+    return replace(defaults, **table)
+
+
+def _lookup(obj: Any, dotted: str) -> Any:
+    for part in dotted.split("."):
+        obj = getattr(obj, part)
+    return obj
+
+
+@dataclass(frozen=True)
+class Progress:
+    """Where a run is: for progress bars, status lines and the modal operator."""
+
+    phase: str  # "search" | "fixed" | "masts" | "report" | "done"
+    sensors: int
+    coverage: float
+    rho: float
+    epoch: int
+    evaluations: int
+
+    @property
+    def fraction(self) -> float:
+        """Progress towards the goal in [0, 1]."""
+        return 1.0 if self.phase == "done" else min(1.0, self.coverage / self.rho)
+
+
+@dataclass
+class FixedSensor:
+    """A sensor as the ES fixed it (local metres, degrees)."""
+
+    pose: SensorPose
+    fitness: float
+    epochs: int
+    evaluations: int
+    new_points: int
+    mast: int = -1
+
+
+@dataclass
+class OptimizationResult:
+    """A finished run: sensors, masts, final coverage, metrics, stop reason."""
+
+    scene: SceneModel
+    grid: GroundGrid
+    model: SensorModel
+    settings: OptimizeSettings
+    sensors: list[FixedSensor]
+    coverages: list[SensorCoverage]
+    summary: CoverageSummary
+    masts: list[tuple[float, float, float, float, tuple[int, ...]]]
+    stop_reason: str
+    uncovered: list[dict[str, Any]]
+    metrics: dict[str, Any]
+
+    def placement(self) -> Placement:
+        """The layout in world coordinates, for reports and the scene."""
+        ox, oy, oz = (float(v) for v in self.scene.origin)
+        recs = []
+        for k, (s, cov) in enumerate(zip(self.sensors, self.coverages), start=1):
+            p = s.pose
+            recs.append(
+                SensorRecord(
+                    n=k,
+                    x=p.x + ox,
+                    y=p.y + oy,
+                    z=p.z + oz,
+                    height_m=p.height_m,
+                    pitch_deg=p.pitch_deg,
+                    yaw_deg=p.yaw_deg,
+                    model=self.model,
+                    mast=s.mast,
+                    fitness=s.fitness,
+                    epochs=s.epochs,
+                    covered_target_m2=len(cov.covered) * self.grid.cell_area,
+                    footprint_m2=float(cov.footprint_m2 or 0.0),
+                    footprint=shapely.affinity.translate(footprint_polygon(self.grid, cov), ox, oy),
+                )
+            )
+        masts = tuple(
+            MastRecord(n=k, x=x + ox, y=y + oy, z_ground=zg + oz, height_m=h, sensors=members)
+            for k, (x, y, zg, h, members) in enumerate(self.masts, start=1)
+        )
+
+        def world(areas: tuple[Area, ...]) -> tuple[tuple[str, Any], ...]:
+            return tuple((a.name, shapely.affinity.translate(a.geometry, ox, oy)) for a in areas)
+
+        return Placement(
+            sensors=tuple(recs),
+            masts=masts,
+            targets=world(self.scene.targets),
+            sensor_areas=world(self.scene.sensor_areas),
+            points=self.scene.to_world(self.grid.target_points),
+            n_visible=self.summary.n_visible,
+            n_covered=self.summary.n_covered,
+            cell_m=self.grid.spacing,
+        )
+
+
+class OptimizationRun:
+    """One optimization of ``model`` sensors on a scene (see module docstring).
+
+    resume: records of sensors fixed by an earlier run with the same inputs (as
+    given to ``on_fixed``); the run starts after the last of them, with its random
+    state. on_fixed(record): called with a JSON-ready dict after each fixed sensor.
+    """
+
+    def __init__(
+        self,
+        scene: SceneModel,
+        caster: RayCaster,
+        model: SensorModel,
+        settings: OptimizeSettings,
+        resume: list[dict[str, Any]] = (),  # type: ignore[assignment]
+        on_fixed: Callable[[dict[str, Any]], None] | None = None,
+    ) -> None:
+        self.settings = settings = settings.validated()
+        self.scene = scene
+        self.model = model
+        self.on_fixed = on_fixed
+        self.t0 = time.perf_counter()
+        self.grid = GroundGrid(
+            scene, caster, settings.grid_m, settings.target_height_m, model.range_m
+        )
+        self.evaluator = _evaluator(settings, self.grid, caster)
+        step = settings.position_step_m or 2.0 * settings.grid_m
+        self.space = SearchSpace(
+            [a.geometry for a in scene.sensor_areas], step, model.pitch_min_deg, model.pitch_max_deg
+        )
+        self.rng = np.random.default_rng(settings.seed)
+        self.fixed = FixedSensors(np.zeros(self.grid.n_targets, dtype=bool))
+        self.sensors: list[FixedSensor] = []
+        self.sight_rays = 0
+        self.evaluations = 0
+        self.stop_reason = ""
+        self._mast: dict[tuple[float, float], tuple[float, float]] = {}
+        # Rays to uncovered points, for restarts aimed at gaps and for the proof
+        # that a gap cannot be seen: always the exact targeted geometry.
+        self.probe = (
+            self.evaluator
+            if isinstance(self.evaluator, CachedTargetedEvaluator)
+            else CachedTargetedEvaluator(self.grid, caster)
+        )
+        ref = reference_footprint_m2(model, settings.grid_m)
+        self.min_gain = max(1, round(0.01 * ref / self.grid.cell_area))
+        self._result: OptimizationResult | None = None
+        if settings.max_sensors is not None:
+            self.max_sensors = settings.max_sensors
+        else:
+            self.max_sensors = int(4 * self.grid.target_area_m2 / max(ref, 1.0)) + 20
+        for record in resume:
+            self._replay(record)
+
+    # --- poses -------------------------------------------------------------------
+    def height_at(self, x: float, y: float) -> float:
+        """Mast height at local (x, y): the sensor area's ``height_m``, else the model's."""
+        for area in self.scene.sensor_areas:
+            if area.height_m is not None and shapely.intersects_xy(area.geometry, x, y):
+                return area.height_m
+        return self.model.mount_height_m
+
+    def pose(self, x: float, y: float, pitch: float, yaw: float) -> SensorPose:
+        """The pose at local (x, y) on its mast (ground and height looked up once)."""
+        key = (float(x), float(y))
+        if key not in self._mast:
+            height = self.height_at(*key)
+            self._mast[key] = (place(self.grid, *key, height, 0.0, 0.0).z, height)
+        z, height = self._mast[key]
+        return SensorPose(key[0], key[1], z, height, float(pitch), float(yaw))
+
+    def evaluate(self, pose: SensorPose) -> tuple[SensorCoverage, Any]:
+        cov = self.evaluator.evaluate(self.model, pose, outside_band_m=self.settings.fitness.band_m)
+        self.sight_rays += cov.rays
+        self.evaluations += 1
+        return cov, fitness(self.grid, cov, self.fixed, self.settings.fitness)
+
+    # --- the run -----------------------------------------------------------------
+    @property
+    def coverage(self) -> float:
+        return float(self.fixed.covered.mean())
+
+    def _progress(self, phase: str, epoch: int = 0) -> Progress:
+        return Progress(
+            phase, len(self.sensors), self.coverage, self.settings.rho, epoch, self.evaluations
+        )
+
+    def steps(self) -> Iterator[Progress]:
+        """Run to the end, yielding after each evaluation; then ``result()``."""
+        s = self.settings
+        stale = 0
+        while True:
+            if self.coverage >= s.rho:
+                self.stop_reason = f"reached rho = {s.rho:.0%} of the target"
+                break
+            if len(self.sensors) >= self.max_sensors:
+                self.stop_reason = f"stopped at max_sensors = {self.max_sensors}"
+                break
+            found = yield from self._search(None)
+            if found[2].new_points < self.min_gain:
+                # The random start found (almost) nothing new: start again from
+                # positions that can see the gaps, first on a coarse lattice, then
+                # on every position (which also proves when nothing can).
+                aimed = self._gap_population(coarse=True)
+                if aimed is None:
+                    aimed = self._gap_population(coarse=False)
+                if aimed is None:
+                    if found[2].new_points == 0:
+                        self.stop_reason = (
+                            "the rest of the target cannot be seen from any position in "
+                            "the sensor areas (line of sight, range, density, pitch limits)"
+                        )
+                        break
+                else:
+                    again = yield from self._search(aimed)
+                    found = max(found, again, key=lambda f: (f[2].new_points, f[2].f_s))
+            pose, cov, fit, epochs, evals = found
+            if fit.new_points == 0:
+                stale += 1
+                if stale >= s.patience:
+                    self.stop_reason = (
+                        f"{stale} searches in a row added nothing, though parts of the "
+                        "rest may be within reach of some position (an upper bound)"
+                    )
+                    break
+                continue
+            stale = 0
+            self._fix(pose, cov, fit.f_s, epochs, evals)
+            yield self._progress("fixed")
+        yield self._progress("masts")
+        masts = self._group_masts()
+        yield self._progress("report")
+        self._result = self._finish(masts)
+        yield self._progress("done")
+
+    def _search(self, initial: F64 | None):
+        """One ES for the next sensor (yields progress); returns its best
+        (pose, coverage, fitness, epochs, evaluations)."""
+        search = SensorSearch(
+            self.space,
+            self.settings.es,
+            self.rng,
+            lambda ind: self.evaluate(self.pose(*ind))[1].f_s,
+        )
+        for epoch in search.steps(initial):
+            yield self._progress("search", epoch)
+        assert search.best is not None
+        pose = self.pose(*search.best)
+        cov, fit = self.evaluate(pose)
+        return pose, cov, fit, search.epochs, search.evaluations
+
+    def _gap_population(self, coarse: bool) -> F64 | None:
+        """(mu, 4) first parents aimed at uncovered target points within reach, or None
+        when no probed position reaches any.
+
+        Positions are drawn in proportion to how many uncovered points they might
+        cover (``CachedTargetedEvaluator.reachable``); each looks at the centroid of
+        those points. ``coarse`` probes every 4th lattice point in x and y.
+        """
+        positions = self.space.positions
+        if coarse:
+            k = np.round(positions / self.space.step).astype(int)
+            positions = positions[(k[:, 0] % 4 == 0) & (k[:, 1] % 4 == 0)]
+        wanted = ~self.fixed.covered
+        counts = np.zeros(len(positions))
+        aims = np.zeros((len(positions), 2))
+        pts = self.grid.target_points
+        for i, (x, y) in enumerate(positions):
+            pose = self.pose(x, y, self.model.pitch_min_deg, 0.0)
+            ords = self.probe.reachable(self.model, pose, wanted)
+            counts[i] = len(ords)
+            if len(ords):
+                v = pts[ords].mean(axis=0) - pose.position
+                yaw = math.degrees(math.atan2(v[1], v[0])) % 360.0
+                pitch = math.degrees(math.atan2(-v[2], math.hypot(v[0], v[1])))
+                aims[i] = (pitch, yaw)
+        if counts.sum() == 0:
+            return None
+        mu = self.settings.es.mu
+        pick = self.rng.choice(len(positions), size=mu, p=counts / counts.sum())
+        lo, hi = self.model.pitch_min_deg, self.model.pitch_max_deg
+        pitch = np.clip(aims[pick, 0] + self.rng.normal(0, 5.0, mu), lo, hi)
+        yaw = (aims[pick, 1] + self.rng.normal(0, 15.0, mu)) % 360.0
+        return np.column_stack([positions[pick], pitch, yaw])
+
+    def result(self) -> OptimizationResult:
+        if self._result is None:
+            for _ in self.steps():
+                pass
+        assert self._result is not None
+        return self._result
+
+    def _fix(
+        self, pose: SensorPose, cov: SensorCoverage, f_s: float, epochs: int, evals: int
+    ) -> None:
+        new = self.fixed.add(cov)
+        self.sensors.append(FixedSensor(pose, f_s, epochs, evals, new))
+        if self.on_fixed is not None:
+            self.on_fixed(
+                {
+                    "n": len(self.sensors),
+                    "x": pose.x,
+                    "y": pose.y,
+                    "pitch_deg": pose.pitch_deg,
+                    "yaw_deg": pose.yaw_deg,
+                    "fitness": f_s,
+                    "epochs": epochs,
+                    "evaluations": evals,
+                    "new_points": new,
+                    "coverage": self.coverage,
+                    "rng_state": self.rng.bit_generator.state,
+                }
+            )
+
+    def _replay(self, record: dict[str, Any]) -> None:
+        """Re-fix a sensor from a checkpoint record and take over its random state."""
+        pose = self.pose(record["x"], record["y"], record["pitch_deg"], record["yaw_deg"])
+        cov = self.evaluator.evaluate(self.model, pose, outside_band_m=self.settings.fitness.band_m)
+        new = self.fixed.add(cov)
+        self.sensors.append(
+            FixedSensor(pose, record["fitness"], record["epochs"], record["evaluations"], new)
+        )
+        self.rng.bit_generator.state = record["rng_state"]
+
+    def _group_masts(self) -> list[tuple[float, float, float, float, tuple[int, ...]]]:
+        """Group sensors into masts; move members to the chosen site (re-placed)."""
+        if not self.sensors:
+            return []
+        xy = np.array([[s.pose.x, s.pose.y] for s in self.sensors])
+        labels = group_positions(xy, self.settings.mast_join_m)
+
+        def coverage_with(new_xy: F64) -> int:
+            covered = np.zeros(self.grid.n_targets, dtype=bool)
+            for s, (x, y) in zip(self.sensors, new_xy):
+                pose = self.pose(x, y, s.pose.pitch_deg, s.pose.yaw_deg)
+                cov = self.evaluator.evaluate(self.model, pose)
+                covered[cov.covered] = True
+            return int(covered.sum())
+
+        before = int(self.fixed.covered.sum())
+        goal = math.ceil(self.settings.rho * self.grid.n_targets)
+        new_xy, labels = choose_sites(xy, labels, coverage_with, min(before, goal))
+        masts = []
+        for s, (x, y), label in zip(self.sensors, new_xy, labels):
+            s.pose = self.pose(x, y, s.pose.pitch_deg, s.pose.yaw_deg)
+            s.mast = int(label)
+        for label in range(int(labels.max()) + 1):
+            members = tuple(int(k) + 1 for k in np.flatnonzero(labels == label))
+            first = self.sensors[members[0] - 1].pose
+            height = max(self.sensors[m - 1].pose.height_m for m in members)
+            masts.append((first.x, first.y, first.z - first.height_m, height, members))
+        return masts
+
+    def _finish(self, masts: list) -> OptimizationResult:
+        """Final full evaluation (footprints, visibility), metrics and stop report."""
+        coverages = [
+            self.evaluator.evaluate(self.model, s.pose, outside_band_m=math.inf, visibility=True)
+            for s in self.sensors
+        ]
+        self.sight_rays += sum(c.rays for c in coverages)
+        summary = summarize(self.grid, coverages)
+        cell = self.grid.cell_area
+        target_m2 = self.grid.target_area_m2
+        n = len(self.sensors)
+        reference = reference_footprint_m2(self.model, self.settings.grid_m)
+        footprints = [c.footprint_m2 or 0.0 for c in coverages]
+        wall = time.perf_counter() - self.t0
+        metrics = {
+            "coverage_fraction": round(summary.coverage_fraction, 6),
+            "covered_m2": summary.covered_m2,
+            "target_area_m2": target_m2,
+            "sensors": n,
+            "masts": len(masts),
+            "cluster_ratio": round(len(masts) / n, 4) if n else None,
+            "relative_sensor_coverage": round(float(np.mean(footprints)) / reference, 4)
+            if n
+            else None,
+            "reference_footprint_m2": round(reference, 2),
+            "overlap_factor": round(sum(len(c.covered) for c in coverages) * cell / target_m2, 4),
+            "mean_epochs_per_sensor": round(float(np.mean([s.epochs for s in self.sensors])), 2)
+            if n
+            else None,
+            "evaluations": self.evaluations,
+            "wall_s": round(wall, 2),
+            "rays_cast": self.sight_rays + self.grid.drop_rays + self.probe.extra_rays,
+        }
+        return OptimizationResult(
+            scene=self.scene,
+            grid=self.grid,
+            model=self.model,
+            settings=self.settings,
+            sensors=self.sensors,
+            coverages=coverages,
+            summary=summary,
+            masts=masts,
+            stop_reason=self.stop_reason,
+            uncovered=uncovered_parts(self.grid, summary.n_covered == 0, self.scene),
+            metrics=metrics,
+        )
+
+
+def _evaluator(settings: OptimizeSettings, grid: GroundGrid, caster: RayCaster):
+    if settings.method == "pointcloud":
+        return PointcloudEvaluator(grid, caster, settings.oversample, settings.alpha)
+    if settings.cache:
+        return CachedTargetedEvaluator(grid, caster)
+    return TargetedEvaluator(grid, caster)
+
+
+def uncovered_parts(
+    grid: GroundGrid, uncovered: NDArray[np.bool_], scene: SceneModel, min_m2: float = 0.0
+) -> list[dict[str, Any]]:
+    """Connected patches of uncovered target points (8-neighbour), largest first.
+
+    Each: the target area's name, m^2, and the patch centroid in world x, y.
+    """
+    if not uncovered.any():
+        return []
+    mask = np.zeros(grid.nx * grid.ny, dtype=bool)
+    mask[grid.target_cells[uncovered]] = True
+    labels, count = ndimage.label(mask.reshape(grid.nx, grid.ny), structure=np.ones((3, 3)))
+    flat = labels.ravel()[grid.target_cells]
+    parts = []
+    for k in range(1, count + 1):
+        members = np.flatnonzero(flat == k)
+        m2 = len(members) * grid.cell_area
+        if m2 < min_m2:
+            continue
+        cx, cy = scene.to_world(grid.target_xy[members].mean(axis=0))
+        region = int(np.bincount(grid.target_region[members]).argmax())
+        parts.append(
+            {
+                "target": scene.targets[region].name,
+                "m2": m2,
+                "x": round(float(cx), 2),
+                "y": round(float(cy), 2),
+            }
+        )
+    parts.sort(key=lambda p: -p["m2"])
+    return parts
+
+
+@lru_cache(maxsize=16)
+def reference_footprint_m2(model: SensorModel, grid_m: float = 1.0) -> float:
+    """The model's largest footprint on flat, empty ground over its pitch range, m^2
+    (the paper's reference for the relative sensor coverage: 1229.95 for its camera).
+
+    Evaluated with ``targeted`` at the given grid spacing, pitch in 1 deg steps.
+    """
+    r = model.range_m
+    flat = SceneModel(
+        vertices=np.zeros((0, 3)),
+        faces=np.zeros((0, 3), dtype=np.int32),
+        occluders=(),
+        targets=(Area("flat", shapely.box(-r, -r, r, r)),),
+        sensor_areas=(Area("mast", shapely.box(-0.5, -0.5, 0.5, 0.5)),),
+    )
+    caster = BoxCaster(ground_z=0.0)
+    grid = GroundGrid(flat, caster, grid_m, reach_m=0.0)
+    ev = TargetedEvaluator(grid, caster)
+    best = 0.0
+    pitches = np.arange(model.pitch_min_deg, model.pitch_max_deg + 1e-9, 1.0)
+    for pitch in pitches if len(pitches) else [model.pitch_min_deg]:
+        pose = SensorPose(0.0, 0.0, model.mount_height_m, model.mount_height_m, float(pitch), 0.0)
+        cov = ev.evaluate(model, pose)
+        best = max(best, len(cov.covered) * grid.cell_area)
+    return best

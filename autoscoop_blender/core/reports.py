@@ -1,0 +1,162 @@
+"""Report files of an optimization: result.json, sensors.csv, sensors.geojson.
+
+All coordinates are the scene's world coordinates (metres). The GeoJSON carries them
+as they are: a planner's GIS assigns the proving ground's projected CRS.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import platform
+from typing import Any
+
+import numpy as np
+import shapely
+
+from .optimize import OptimizationResult
+from .placement import Placement
+
+RESULT_SCHEMA = "autoscoop.result/1"
+VERSION = "0.1.0"
+
+SENSORS_CSV_HEADER = (
+    "n",
+    "x",
+    "y",
+    "z",
+    "pitch_deg",
+    "yaw_deg",
+    "fitness",
+    "target_covered_m2",
+    "mast",
+)
+
+
+def versions() -> dict[str, str]:
+    """Versions of AutoSCOOP and of the libraries behind a result."""
+    import scipy
+
+    return {
+        "autoscoop": VERSION,
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "scipy": scipy.__version__,
+        "shapely": shapely.__version__,
+    }
+
+
+def result_dict(
+    result: OptimizationResult,
+    placement: Placement,
+    extra_versions: dict[str, str] | None = None,
+    optimizer: str = "es",
+) -> dict[str, Any]:
+    """The result.json document.
+
+    Its ``model`` and ``sensors`` keys form a valid sensors file, so
+    ``headless coverage SCENE --sensors result.json`` recomputes the coverage.
+    """
+    settings = result.settings
+    return {
+        "schema": RESULT_SCHEMA,
+        "scene": result.scene.source,
+        "optimizer": optimizer,
+        "method": settings.method,
+        "seed": settings.seed,
+        "settings": settings.to_dict(),
+        "model": result.model.to_dict(),
+        "versions": {**versions(), **(extra_versions or {})},
+        "metrics": result.metrics,
+        "stop_reason": result.stop_reason,
+        "uncovered": result.uncovered,
+        "sensors": [
+            {
+                "n": s.n,
+                "x": s.x,
+                "y": s.y,
+                "z": round(s.z, 4),
+                "height_m": s.height_m,
+                "pitch_deg": s.pitch_deg,
+                "yaw_deg": s.yaw_deg,
+                "mast": s.mast + 1,
+                "fitness": round(s.fitness, 3),
+                "epochs": s.epochs,
+                "target_covered_m2": s.covered_target_m2,
+                "footprint_m2": round(s.footprint_m2, 2),
+            }
+            for s in placement.sensors
+        ],
+        "masts": [
+            {
+                "n": m.n,
+                "x": m.x,
+                "y": m.y,
+                "z_ground": round(m.z_ground, 4),
+                "height_m": m.height_m,
+                "sensors": list(m.sensors),
+            }
+            for m in placement.masts
+        ],
+        "origin": [float(v) for v in result.scene.origin],
+    }
+
+
+def sensors_csv(placement: Placement) -> str:
+    """The paper's Table III columns, one row per sensor, plus its mast (1-based)."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(SENSORS_CSV_HEADER)
+    for s in placement.sensors:
+        w.writerow(
+            [
+                s.n,
+                f"{s.x:.3f}",
+                f"{s.y:.3f}",
+                f"{s.z:.3f}",
+                f"{s.pitch_deg:.3f}",
+                f"{s.yaw_deg:.3f}",
+                f"{s.fitness:.1f}",
+                f"{s.covered_target_m2:.0f}",
+                s.mast + 1,
+            ]
+        )
+    return buf.getvalue()
+
+
+def sensors_geojson(placement: Placement) -> dict[str, Any]:
+    """Masts as points, sensor footprints as (multi)polygons, in world metres."""
+    features: list[dict[str, Any]] = []
+    for m in placement.masts:
+        features.append(
+            {
+                "type": "Feature",
+                "geometry": {"type": "Point", "coordinates": [m.x, m.y, m.z_ground]},
+                "properties": {
+                    "kind": "mast",
+                    "mast": m.n,
+                    "height_m": m.height_m,
+                    "sensors": list(m.sensors),
+                },
+            }
+        )
+    for s in placement.sensors:
+        if s.footprint.is_empty:
+            continue
+        features.append(
+            {
+                "type": "Feature",
+                "geometry": shapely.geometry.mapping(shapely.set_precision(s.footprint, 0.01)),
+                "properties": {
+                    "kind": "footprint",
+                    "sensor": s.n,
+                    "mast": s.mast + 1,
+                    "pitch_deg": round(s.pitch_deg, 3),
+                    "yaw_deg": round(s.yaw_deg, 3),
+                    "height_m": s.height_m,
+                    "target_covered_m2": s.covered_target_m2,
+                    "footprint_m2": round(s.footprint_m2, 2),
+                },
+            }
+        )
+    return {"type": "FeatureCollection", "features": features}

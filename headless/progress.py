@@ -1,0 +1,44 @@
+"""A one-line progress bar on stderr for long runs."""
+
+from __future__ import annotations
+
+import sys
+import time
+
+from autoscoop_blender.core.optimize import Progress
+
+
+class ProgressBar:
+    """Redraws one status line at most every ``interval_s``; on a non-terminal
+    stream it prints a line per fixed sensor instead."""
+
+    def __init__(self, stream=sys.stderr, interval_s: float = 0.2, width: int = 24) -> None:
+        self.stream = stream
+        self.tty = stream.isatty()
+        self.interval = interval_s
+        self.width = width
+        self.t0 = time.perf_counter()
+        self._last = 0.0
+
+    def _line(self, p: Progress) -> str:
+        filled = int(round(p.fraction * self.width))
+        bar = "#" * filled + "-" * (self.width - filled)
+        return (
+            f"[{bar}] coverage {p.coverage:6.2%} of {p.rho:.0%} | sensors {p.sensors:3d} | "
+            f"epoch {p.epoch:3d} | {p.phase:<6} | {time.perf_counter() - self.t0:6.1f} s"
+        )
+
+    def update(self, p: Progress) -> None:
+        now = time.perf_counter()
+        if not self.tty:
+            if p.phase in ("fixed", "done"):
+                print(self._line(p), file=self.stream, flush=True)
+            return
+        if p.phase == "search" and now - self._last < self.interval:
+            return
+        self._last = now
+        print("\r" + self._line(p), end="", file=self.stream, flush=True)
+
+    def close(self) -> None:
+        if self.tty:
+            print(file=self.stream, flush=True)

@@ -1,0 +1,135 @@
+"""``python -m headless optimize``: the default run on two_routes, its outputs, an
+independent recomputation, the paper-faithful pipeline, checkpoints and resume."""
+
+import csv
+import json
+import zlib
+
+import bpy
+import pytest
+
+from autoscoop_blender import names
+from tests.cli.conftest import SAMPLES, run_headless
+
+FLAT = SAMPLES / "flat_wall.blend"
+SMALL = """
+rho = 0.6
+[es]
+mu = 8
+lam = 4
+max_epochs = 4
+"""
+
+
+@pytest.fixture(scope="module")
+def default_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("default")
+    code, stdout, stderr = run_headless("optimize", "--out-dir", out)
+    assert code == 0, stderr
+    return out, stdout
+
+
+def test_default_run_reaches_the_goal(default_run):
+    out, stdout = default_run
+    res = json.loads((out / "result.json").read_text())
+    m = res["metrics"]
+    assert m["coverage_fraction"] >= 0.97
+    assert res["scene"] == "two_routes.blend" and res["optimizer"] == "es"
+    assert res["method"] == "targeted" and res["seed"] == 0
+    for key in (
+        "sensors", "masts", "cluster_ratio", "relative_sensor_coverage", "overlap_factor",
+        "mean_epochs_per_sensor", "wall_s", "rays_cast",
+    ):  # fmt: skip
+        assert key in m
+    assert m["sensors"] == len(res["sensors"]) and m["masts"] == len(res["masts"])
+    assert "reached rho" in res["stop_reason"] and f"{m['sensors']} sensors" in stdout
+
+
+def test_recomputed_coverage_agrees(default_run, tmp_path):
+    out, _ = default_run
+    res = json.loads((out / "result.json").read_text())
+    check = tmp_path / "check.json"
+    code, _, stderr = run_headless(
+        "coverage", SAMPLES / "two_routes.blend", "--sensors", out / "result.json", "--out", check
+    )
+    assert code == 0, stderr
+    again = json.loads(check.read_text())
+    assert again["coverage_fraction"] == pytest.approx(
+        res["metrics"]["coverage_fraction"], abs=1e-6
+    )
+    per_sensor = [s["covered_target_m2"] for s in again["sensors"]]
+    assert per_sensor == [s["target_covered_m2"] for s in res["sensors"]]
+
+
+def test_output_files(default_run):
+    out, _ = default_run
+    res = json.loads((out / "result.json").read_text())
+    rows = list(csv.DictReader((out / "sensors.csv").open()))
+    assert list(rows[0]) == [
+        "n", "x", "y", "z", "pitch_deg", "yaw_deg", "fitness", "target_covered_m2", "mast"
+    ]  # fmt: skip
+    assert len(rows) == len(res["sensors"])
+    for row, s in zip(rows, res["sensors"]):
+        assert float(row["x"]) == pytest.approx(s["x"], abs=1e-3)
+        assert int(row["mast"]) == s["mast"]
+    geo = json.loads((out / "sensors.geojson").read_text())
+    kinds = [f["properties"]["kind"] for f in geo["features"]]
+    assert kinds.count("mast") == len(res["masts"]) and kinds.count("footprint") == len(rows)
+    png = (out / "coverage.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and zlib.crc32(png[12:29]) == int.from_bytes(png[29:33])
+    lines = (out / "checkpoint.jsonl").read_text().splitlines()
+    assert len(lines) == 1 + len(rows)
+
+    bpy.ops.wm.open_mainfile(filepath=str(out / "result.blend"))
+    results = bpy.data.collections[names.RESULTS_COLLECTION]
+    cameras = [o for o in results.all_objects if o.type == "CAMERA"]
+    assert len(cameras) == len(rows)
+    # The user's objects came through unchanged.
+    assert "Terrain" in bpy.data.objects and "Target_RouteA" in bpy.data.objects
+
+
+def test_pointcloud_pipeline_end_to_end(tmp_path):
+    cfg = tmp_path / "tiny.toml"
+    cfg.write_text("rho = 0.3\n[es]\nmu = 4\nlam = 2\nmax_epochs = 2\n")
+    out = tmp_path / "pc"
+    code, _, stderr = run_headless(
+        "optimize", FLAT, "--method", "pointcloud", "--config", cfg, "--out-dir", out
+    )
+    assert code == 0, stderr
+    res = json.loads((out / "result.json").read_text())
+    assert res["method"] == "pointcloud" and res["metrics"]["coverage_fraction"] >= 0.3
+    # Every sensor costs the whole pattern per evaluation.
+    assert res["metrics"]["rays_cast"] >= 30720 * res["metrics"]["evaluations"]
+
+
+def test_resume_after_an_interruption(tmp_path):
+    cfg = tmp_path / "small.toml"
+    cfg.write_text(SMALL.replace("rho = 0.6", "rho = 0.9"))
+    out = tmp_path / "run"
+    code, _, stderr = run_headless("optimize", FLAT, "--config", cfg, "--out-dir", out)
+    assert code == 0, stderr
+    whole = (out / "sensors.csv").read_text()
+    lines = (out / "checkpoint.jsonl").read_text().splitlines()
+    assert len(lines) >= 3
+    # As if the run had been cut off after the first sensor, mid-write of the next.
+    (out / "checkpoint.jsonl").write_text(lines[0] + "\n" + lines[1] + "\n" + lines[2][:20])
+    (out / "sensors.csv").unlink()
+    code, _, stderr = run_headless("optimize", FLAT, "--config", cfg, "--out-dir", out, "--resume")
+    assert code == 0, stderr
+    assert "resuming after 1 fixed sensor" in stderr
+    assert (out / "sensors.csv").read_text() == whole
+
+    code, _, stderr = run_headless(
+        "optimize", FLAT, "--config", cfg, "--out-dir", out, "--resume", "--seed", "5"
+    )
+    assert code == 2 and "different settings" in stderr
+
+
+def test_bad_optimize_input(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("rhoo = 0.9\n")
+    code, _, stderr = run_headless("optimize", FLAT, "--config", bad, "--out-dir", tmp_path / "o")
+    assert code == 2 and stderr.strip() == "error: bad.toml: unknown setting(s) rhoo"
+    code, _, stderr = run_headless("optimize", FLAT, "--resume", "--out-dir", tmp_path / "none")
+    assert code == 2 and "no checkpoint to resume from" in stderr
+    assert not (tmp_path / "o" / "result.json").exists()
