@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # AutoSCOOP developer entry: sets up .venv (Python 3.11, pinned requirements) once,
 # then runs the job asked for.
-#   ./dev.sh demo   the main job on the bundled sample scene, results in out/
+#   ./dev.sh demo   the main job (optimize the bundled sample scene), results in out/
 #   ./dev.sh test   the test suite (fails when no test ran)
 set -euo pipefail
 cd "$(dirname "$0")"
@@ -25,9 +25,7 @@ case "${1:-}" in
     demo)
         setup
         shift
-        exec "$VENV/bin/python" -m headless coverage sample_blends/two_routes.blend \
-            --sensors sample_blends/two_routes_sensors.json \
-            --out out/coverage.json --points-csv out/points.csv "$@"
+        exec "$VENV/bin/python" -m headless optimize "$@"
         ;;
     test)
         setup

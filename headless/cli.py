@@ -60,11 +60,17 @@ def build_parser() -> argparse.ArgumentParser:
     smp.add_argument("--out-dir", default=str(SAMPLES))
 
     bench = sub.add_parser("bench", help="benchmarks that print figures")
-    bench.add_argument("what", choices=("coverage",))
+    bench.add_argument("what", choices=("coverage", "optimize"))
     bench.add_argument("--scene", default=str(SAMPLES / "two_routes.blend"))
-    bench.add_argument("--poses", type=int, default=12, help="poses per method")
+    bench.add_argument("--poses", type=int, default=12, help="coverage: poses per method")
     bench.add_argument("--seed", type=int, default=0)
-    bench.add_argument("--out", help="also write the figures to this JSON file")
+    bench.add_argument("--out", help="coverage: also write the figures to this JSON file")
+    bench.add_argument("--out-dir", default="bench", help="optimize: figures and runs")
+    bench.add_argument(
+        "--paper-dir",
+        default="bench/paper_pointcloud",
+        help="optimize: output folder of the paper-faithful run (reused or resumed)",
+    )
     return parser
 
 
@@ -112,4 +118,4 @@ def _samples(args: argparse.Namespace) -> int:
 def _bench(args: argparse.Namespace) -> int:
     from headless import bench
 
-    return bench.coverage(args)
+    return bench.coverage(args) if args.what == "coverage" else bench.optimize(args)

@@ -62,12 +62,67 @@ class Triangulation:
             return np.full(len(xy), -1)
         return self.delaunay.find_simplex(np.asarray(xy, dtype=float))
 
+    def locate_kept(self, xy: F64, keep: NDArray[np.bool_], cell: float) -> NDArray[np.int_]:
+        """(K,) index of the kept triangle holding each query point, -1 for none.
+
+        The queries must be centres of a lattice with spacing ``cell`` (grid cells).
+        Each kept triangle visits the lattice centres inside its bounding box, so
+        the cost follows the triangles' total area, not a walk through the mesh;
+        a point on an edge between two kept triangles takes the lower index.
+        """
+        out = np.full(len(xy), -1)
+        ids = np.flatnonzero(keep)
+        if len(xy) == 0 or len(ids) == 0:
+            return out
+        lo = xy.min(axis=0) - cell / 2
+        q = np.floor((xy - lo) / cell).astype(np.int64)
+        shape = q.max(axis=0) + 1
+        raster = np.full(shape, -1, dtype=np.int64)
+        raster[q[:, 0], q[:, 1]] = np.arange(len(xy))
+
+        p = self.points[self.simplices[ids]]  # (T, 3, 2)
+        first = np.ceil((p.min(axis=1) - lo) / cell - 0.5).astype(np.int64)
+        last = np.floor((p.max(axis=1) - lo) / cell - 0.5).astype(np.int64)
+        first = np.maximum(first, 0)
+        last = np.minimum(last, shape - 1)
+        size = np.maximum(last - first + 1, 0)
+        count = size[:, 0] * size[:, 1]
+        tri = np.repeat(np.arange(len(ids)), count)
+        if len(tri) == 0:
+            return out
+        k = np.arange(len(tri)) - np.repeat(np.cumsum(count) - count, count)
+        i = first[tri, 0] + k // size[tri, 1]
+        j = first[tri, 1] + k % size[tri, 1]
+        query = raster[i, j]
+        tri, query = tri[query >= 0], query[query >= 0]
+        inside = _in_triangle(xy[query], p[tri])
+        tri, query = tri[inside], query[inside]
+        # Lowest triangle index wins on shared edges: assign in reverse order.
+        order = np.argsort(-tri, kind="stable")
+        out[query[order]] = ids[tri[order]]
+        return out
+
     def barycentric(self, xy: F64, simplex: NDArray[np.int_]) -> F64:
         """(K, 3) barycentric weights of points in their triangles (simplex >= 0)."""
-        assert self.delaunay is not None
-        t = self.delaunay.transform[simplex]
-        b = np.einsum("kij,kj->ki", t[:, :2], xy - t[:, 2])
-        return np.column_stack([b, 1.0 - b.sum(axis=1)])
+        p = self.points[self.simplices[simplex]]
+        v0, v1, v2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0], xy - p[:, 0]
+        den = v0[:, 0] * v1[:, 1] - v1[:, 0] * v0[:, 1]
+        w1 = (v2[:, 0] * v1[:, 1] - v1[:, 0] * v2[:, 1]) / den
+        w2 = (v0[:, 0] * v2[:, 1] - v2[:, 0] * v0[:, 1]) / den
+        return np.column_stack([1.0 - w1 - w2, w1, w2])
+
+
+def _in_triangle(xy: F64, corners: F64) -> NDArray[np.bool_]:
+    """(K,) whether points (K, 2) lie in triangles (K, 3, 2), edges included."""
+    a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
+
+    def side(p, q, r):
+        return (q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0])
+
+    d1, d2, d3 = side(a, b, xy), side(b, c, xy), side(c, a, xy)
+    has_neg = (d1 < 0) | (d2 < 0) | (d3 < 0)
+    has_pos = (d1 > 0) | (d2 > 0) | (d3 > 0)
+    return ~(has_neg & has_pos)
 
 
 def triangulate(points: ArrayLike) -> Triangulation:

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 from numpy.typing import NDArray
+from scipy import ndimage
 from shapely.geometry.base import BaseGeometry
 
 from .alpha import Triangulation, alpha_mask, triangulate, union_triangles
@@ -152,8 +153,10 @@ def view(model: SensorModel, rot: F64, lines: SightLines) -> tuple[NDArray[np.bo
     pattern's density on the surface under it (points/m^2, sensor units)."""
     with np.errstate(invalid="ignore"):
         in_view = (lines.dist > 1e-9) & (lines.dist <= model.range_m)
-        in_view &= model.in_fov(to_sensor(lines.d, rot))
-        density = model.rays_per_sr(to_sensor(lines.gd, rot)) * lines.surface
+        local = to_sensor(lines.d, rot)
+        in_view &= model.in_fov(local)
+        ground = local if lines.gd is lines.d else to_sensor(lines.gd, rot)
+        density = model.rays_per_sr(ground) * lines.surface
     return in_view, np.where(in_view, density, 0.0)
 
 
@@ -258,16 +261,24 @@ class PointcloudEvaluator:
 
         density, spacing = _pattern_density(xy, hit, self.oversample**2)
         pts, pts_density, pts_spacing = xy[hit], density[hit], spacing[hit]
-        # The footprint is the alpha shape of the hits over the threshold (the
-        # paper's filtered FoV); line of sight alone is the alpha shape of all hits.
-        dense = pts_density >= model.min_density_per_m2
-        tri = triangulate(pts[dense])
-        keep_tri = alpha_mask(tri, self._radius_limit(tri, pts_spacing[dense]))
-
         cells, ordinal = _cells_in_reach(grid, s, model.range_m, outside_band_m)
         is_target = ordinal >= 0
         qxy = grid.xy(cells)
-        covered, simplex = _inside(tri, keep_tri, qxy)
+
+        # The footprint is the alpha shape of the hits over the threshold (the
+        # paper's filtered FoV); line of sight alone is the alpha shape of all hits.
+        dense = np.flatnonzero(pts_density >= model.min_density_per_m2)
+        full = outside_band_m is not None and math.isinf(outside_band_m)
+        if not full and len(dense):
+            # Only the cells asked about matter. An alpha triangle holding a cell
+            # lies within twice its radius limit of it, and its circumcircle holds no
+            # other hit; so triangulating just the hits within that distance of the
+            # cells gives exactly the triangles the cells fall in, for less work.
+            reach = 2.0 * self._max_radius(pts_spacing[dense]) + grid.spacing
+            dense = dense[_near(grid, pts[dense], qxy, reach)]
+        tri = triangulate(pts[dense])
+        keep_tri = alpha_mask(tri, self._radius_limit(tri, pts_spacing[dense]))
+        covered, simplex = _inside(tri, keep_tri, qxy, grid.spacing)
         cov_t = covered & is_target
         chi = _interpolate(tri, pts_density[dense], qxy[cov_t], simplex[cov_t])
 
@@ -275,7 +286,7 @@ class PointcloudEvaluator:
         if visibility:
             all_tri = triangulate(pts)
             all_keep = alpha_mask(all_tri, self._radius_limit(all_tri, pts_spacing))
-            seen, _ = _inside(all_tri, all_keep, qxy[is_target])
+            seen, _ = _inside(all_tri, all_keep, qxy[is_target], grid.spacing)
             visible = ordinal[is_target][seen | covered[is_target]]
         return SensorCoverage(
             pose=pose,
@@ -285,10 +296,35 @@ class PointcloudEvaluator:
             chi=chi,
             visible=visible,
             outside=cells[covered & ~is_target],
-            footprint_m2=float(tri.areas()[keep_tri].sum()),
+            footprint_m2=float(tri.areas()[keep_tri].sum()) if full else None,
             rays=int(flat.shape[0]),
             _triangles=tri.points[tri.simplices[keep_tri]],
         )
+
+    def _max_radius(self, spacing: F64) -> float:
+        """The largest alpha radius any triangle of these hits can be allowed."""
+        if self.alpha_m is not None:
+            return self.alpha_m
+        return self.alpha * float(spacing.max(initial=0.0))
+
+
+def _near(grid: GroundGrid, pts: F64, qxy: F64, reach: float) -> NDArray[np.bool_]:
+    """(P,) whether each point (P, 2) lies within ``reach`` m (give or take one cell)
+    of any query cell centre (Q, 2), through a distance transform on a local raster."""
+    if len(qxy) == 0:
+        return np.zeros(len(pts), dtype=bool)
+    g = grid.spacing
+    lo = qxy.min(axis=0) - reach - g
+    shape = np.ceil((qxy.max(axis=0) + reach + g - lo) / g).astype(int) + 1
+    raster = np.ones(shape, dtype=bool)
+    qi = np.floor((qxy - lo) / g).astype(int)
+    raster[qi[:, 0], qi[:, 1]] = False
+    dist = ndimage.distance_transform_edt(raster) * g
+    pi = np.floor((pts - lo) / g).astype(int)
+    inside = np.all((pi >= 0) & (pi < shape), axis=1)
+    near = np.zeros(len(pts), dtype=bool)
+    near[inside] = dist[pi[inside, 0], pi[inside, 1]] <= reach + g
+    return near
 
 
 def _cells_in_reach(
@@ -307,13 +343,11 @@ def _cells_in_reach(
 
 
 def _inside(
-    tri: Triangulation, keep: NDArray[np.bool_], xy: F64
+    tri: Triangulation, keep: NDArray[np.bool_], xy: F64, cell: float
 ) -> tuple[NDArray[np.bool_], NDArray[np.int_]]:
-    """(K,) whether points (K, 2) lie in a kept triangle, and the triangle index."""
-    simplex = tri.locate(xy)
-    inside = simplex >= 0
-    inside[inside] = keep[simplex[inside]]
-    return inside, simplex
+    """(K,) whether lattice centres (K, 2) lie in a kept triangle, and its index."""
+    simplex = tri.locate_kept(xy, keep, cell)
+    return simplex >= 0, simplex
 
 
 def _pattern_density(xy: F64, hit: NDArray[np.bool_], rays_per_pattern_ray: int) -> tuple[F64, F64]:

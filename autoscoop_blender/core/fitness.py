@@ -116,9 +116,10 @@ def fitness(
     d_sensor = np.hypot(placed[:, 0] - cov.pose.x, placed[:, 1] - cov.pose.y)
     f_ds = f_ca / z * float(np.exp(-(d_sensor**2) / two_theta2).sum())
     f_sc = 0.0
-    cells = np.concatenate([grid.target_cells[cov.covered], cov.outside])
-    if len(cells):
-        centroid = grid.xy(cells).mean(axis=0)
+    n_cells = len(cov.covered) + len(cov.outside)
+    if n_cells:
+        total = grid.target_xy[cov.covered].sum(axis=0) + grid.xy(cov.outside).sum(axis=0)
+        centroid = total / n_cells
         d_area = np.hypot(placed[:, 0] - centroid[0], placed[:, 1] - centroid[1])
         f_sc = f_ca / z * float(np.exp(-(d_area**2) / two_theta2).sum())
     f_s = params.w_ca * f_ca + params.w_ds * f_ds + params.w_sc * f_sc

@@ -65,6 +65,7 @@ class GroundGrid:
         self._normal = np.full((n, 3), np.nan, dtype=np.float32)
 
         self._target_ordinal = np.full(n, -1, dtype=np.int32)
+        self._target_xy: F64 | None = None
         self.target_cells, self.target_region = self._find_target_cells()
         if len(self.target_cells) == 0:
             names = ", ".join(a.name for a in scene.targets)
@@ -95,7 +96,10 @@ class GroundGrid:
 
     @property
     def target_xy(self) -> F64:
-        return self.xy(self.target_cells)
+        """(N, 2) target cell centres (computed once)."""
+        if self._target_xy is None:
+            self._target_xy = self.xy(self.target_cells)
+        return self._target_xy
 
     @property
     def target_points(self) -> F64:

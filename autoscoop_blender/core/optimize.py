@@ -448,6 +448,9 @@ class OptimizationRun:
                     "evaluations": evals,
                     "new_points": new,
                     "coverage": self.coverage,
+                    "wall_s": round(time.perf_counter() - self.t0, 3),
+                    "rays_cast": self.sight_rays,
+                    "evaluations_total": self.evaluations,
                     "rng_state": self.rng.bit_generator.state,
                 }
             )
@@ -461,6 +464,10 @@ class OptimizationRun:
             FixedSensor(pose, record["fitness"], record["epochs"], record["evaluations"], new)
         )
         self.rng.bit_generator.state = record["rng_state"]
+        # Time, rays and evaluations spent before the interruption still count.
+        self.t0 = time.perf_counter() - record.get("wall_s", 0.0)
+        self.sight_rays = record.get("rays_cast", self.sight_rays)
+        self.evaluations = record.get("evaluations_total", self.evaluations)
 
     def _group_masts(self) -> list[tuple[float, float, float, float, tuple[int, ...]]]:
         """Group sensors into masts; move members to the chosen site (re-placed)."""

@@ -52,10 +52,9 @@ _MIN_NZ = 1e-3
 def frame(pitch_deg: float, yaw_deg: float) -> NDArray[np.float64]:
     """(3, 3) rows forward, left, up of a sensor with the given pitch and yaw (deg)."""
     p, y = math.radians(pitch_deg), math.radians(yaw_deg)
-    forward = (math.cos(p) * math.cos(y), math.cos(p) * math.sin(y), -math.sin(p))
-    left = (-math.sin(y), math.cos(y), 0.0)
-    up = np.cross(forward, left)
-    return np.array([forward, left, up])
+    cp, sp, cy, sy = math.cos(p), math.sin(p), math.cos(y), math.sin(y)
+    # up = forward x left, written out.
+    return np.array([(cp * cy, cp * sy, -sp), (-sy, cy, 0.0), (sp * cy, sp * sy, cp)])
 
 
 @dataclass(frozen=True)
@@ -217,9 +216,13 @@ class SensorModel:
         fwd, left, up = d_sensor[:, 0], d_sensor[:, 1], d_sensor[:, 2]
         tol = 1e-9
         if self.pattern == "angular":
-            az = np.abs(np.arctan2(left, fwd))
-            el = np.abs(np.arcsin(np.clip(up, -1.0, 1.0)))
-            return (az <= ha + tol) & (el <= va + tol)
+            # |elevation| <= va and |azimuth| <= ha, without the inverse trigonometry.
+            ok = np.abs(up) <= math.sin(min(va + tol, math.pi / 2))
+            if ha + tol >= math.pi:
+                return ok
+            if ha + tol >= math.pi / 2:  # wider than a half-space: exclude a back wedge
+                return ok & ((fwd >= 0) | (np.abs(left) >= math.tan(math.pi - ha - tol) * -fwd))
+            return ok & (fwd > 0) & (np.abs(left) <= math.tan(ha + tol) * fwd)
         with np.errstate(divide="ignore", invalid="ignore"):
             ok = fwd > 0
             su = np.abs(left) <= (math.tan(ha) + tol) * fwd
