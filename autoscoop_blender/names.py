@@ -13,12 +13,23 @@ TARGET_RE = re.compile(r"^target", re.IGNORECASE)
 SENSOR_AREA_RE = re.compile(r"^sensor[ _-]?area", re.IGNORECASE)
 
 # Custom properties a user (or the panel) may set on objects.
-ROLE_PROP = "autoscoop_role"  # "target" | "sensor_area": marks a curve explicitly
-ROLE_TARGET = "target"
-ROLE_SENSOR_AREA = "sensor_area"
+ROLE_PROP = "autoscoop_role"  # marks an object explicitly, whatever its name
+ROLE_TARGET = "target"  # a curve: target area
+ROLE_SENSOR_AREA = "sensor_area"  # a curve: sensor area
+ROLE_SENSOR = "sensor"  # a camera: a sensor to evaluate
+ROLE_NONE = "none"  # unmarked: not an area even if the name says so
 IGNORE_PROP = "autoscoop_ignore"  # True: the mesh does not occlude
 HEIGHT_PROP = "height_m"  # on a sensor area: mast height there, metres
 
 # Everything AutoSCOOP creates goes into this collection and nowhere else.
 RESULTS_COLLECTION = "AutoSCOOP Results"
 RESULTS_TAG = "autoscoop_results"  # set on it, so it is found if Blender renames it
+
+# Operator idnames (bpy.ops.autoscoop.*) and the panel's category.
+OP_OPTIMIZE = "autoscoop.optimize"
+OP_EVALUATE = "autoscoop.evaluate"
+OP_MARK = "autoscoop.mark"
+OP_CHECK = "autoscoop.check"
+OP_EXPORT = "autoscoop.export"
+OP_CLEAR = "autoscoop.clear_results"
+PANEL_CATEGORY = "AutoSCOOP"

@@ -56,6 +56,13 @@ def build_parser() -> argparse.ArgumentParser:
     opt.add_argument("--out-dir", default="out", help="output folder (default out/)")
     opt.add_argument("--resume", action="store_true", help="go on from the checkpoint")
 
+    bld = sub.add_parser("build", help="build the extension zips (one per platform)")
+    bld.add_argument("--out-dir", default="dist", help="default dist/")
+    bld.add_argument(
+        "--platform", action="append", help="linux-x64, windows-x64, macos-arm64 (default all)"
+    )
+    bld.add_argument("--wheel-cache", help="where downloaded wheels are kept (build/wheels/)")
+
     smp = sub.add_parser("samples", help="rebuild the sample .blend files")
     smp.add_argument("--out-dir", default=str(SAMPLES))
 
@@ -80,6 +87,7 @@ def main(argv: list[str] | None = None) -> int:
     handlers: dict[str, Callable[[argparse.Namespace], int]] = {
         "coverage": _coverage,
         "optimize": _optimize,
+        "build": _build,
         "samples": _samples,
         "bench": _bench,
     }
@@ -105,6 +113,17 @@ def _optimize(args: argparse.Namespace) -> int:
     from headless import jobs
 
     return jobs.optimize(args)
+
+
+def _build(args: argparse.Namespace) -> int:
+    from headless import build_extension
+
+    argv = ["--out-dir", args.out_dir]
+    for platform in args.platform or []:
+        argv += ["--platform", platform]
+    if args.wheel_cache:
+        argv += ["--wheel-cache", args.wheel_cache]
+    return build_extension.main(argv)
 
 
 def _samples(args: argparse.Namespace) -> int:

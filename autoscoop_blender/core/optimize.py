@@ -389,6 +389,26 @@ class OptimizationRun:
         cov, fit = self.evaluate(pose)
         return pose, cov, fit, search.epochs, search.evaluations
 
+    def blind_areas(self, step_every: int = 2) -> list[str]:
+        """Sensor areas from whose positions (every ``step_every``-th lattice point,
+        and always at least one) no target point can be covered at all."""
+        wanted = np.ones(self.grid.n_targets, dtype=bool)
+        blind = []
+        k = np.round(self.space.positions / self.space.step).astype(int)
+        every = (k[:, 0] % step_every == 0) & (k[:, 1] % step_every == 0)
+        for area in self.scene.sensor_areas:
+            inside = shapely.intersects_xy(area.geometry, *self.space.positions.T)
+            probe = self.space.positions[inside & every]
+            if len(probe) == 0:
+                probe = self.space.positions[inside][:1]
+            seen = any(
+                len(self.probe.reachable(self.model, self.pose(x, y, 0.0, 0.0), wanted))
+                for x, y in probe
+            )
+            if not seen:
+                blind.append(area.name)
+        return blind
+
     def _gap_population(self, coarse: bool) -> F64 | None:
         """(mu, 4) first parents aimed at uncovered target points within reach, or None
         when no probed position reaches any.

@@ -31,6 +31,8 @@ def area_role(obj: bpy.types.Object) -> str | None:
     role = obj.get(names.ROLE_PROP)
     if role in (names.ROLE_TARGET, names.ROLE_SENSOR_AREA):
         return role
+    if role in (names.ROLE_NONE, names.ROLE_SENSOR):
+        return None
     if names.TARGET_RE.match(obj.name):
         return names.ROLE_TARGET
     if names.SENSOR_AREA_RE.match(obj.name):

@@ -142,7 +142,7 @@ def spawn_results(
     mast_mat = _flat_material(MAST_MATERIAL, MAST_RGBA)
 
     for rec in placement.sensors:
-        _link(groups[SENSORS_COLLECTION], _sensor_camera(rec))
+        _link(groups[SENSORS_COLLECTION], sensor_camera(rec))
         _link(groups[FRUSTA_COLLECTION], _frustum_object(rec))
         footprint = _footprint_object(rec, ground_z, footprint_mat)
         if footprint is not None:
@@ -230,7 +230,7 @@ def camera_angles_deg(model: SensorModel) -> tuple[float, float]:
     return min(model.h_fov_deg, MAX_CAMERA_ANGLE_DEG), min(model.v_fov_deg, MAX_CAMERA_ANGLE_DEG)
 
 
-def _sensor_camera(rec: SensorRecord) -> bpy.types.Object:
+def sensor_camera(rec: SensorRecord) -> bpy.types.Object:
     """A camera at the sensor looking along its forward, lens matching its FoV.
 
     The lens and the sensor width/height are chosen so that ``angle_x`` and ``angle_y``

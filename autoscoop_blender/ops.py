@@ -1,0 +1,239 @@
+"""Operators: optimize (modal), evaluate, mark objects, check the scene, export.
+
+Every operator turns a user mistake (``AutoscoopError``) into ``self.report`` and
+``{"CANCELLED"}``; anything else is a bug and raises. The work itself is in
+``scene.pipeline``, shared with ``python -m headless``.
+"""
+
+from __future__ import annotations
+
+import bpy
+from bpy.props import EnumProperty
+
+from . import names
+from .core.errors import AutoscoopError
+from .scene import pipeline
+
+
+def _fail(op: bpy.types.Operator, error: AutoscoopError) -> set[str]:
+    op.report({"ERROR"}, str(error))
+    return {"CANCELLED"}
+
+
+class AUTOSCOOP_OT_optimize(bpy.types.Operator):
+    """Place sensors until the coverage goal is met (Esc cancels and changes nothing)"""
+
+    bl_idname = names.OP_OPTIMIZE
+    bl_label = "Optimize"
+    bl_options = {"REGISTER", "UNDO"}
+
+    _budget_s = 0.04  # a time slice: the UI stays responsive between slices
+    _job: pipeline.OptimizeJob | None = None
+    _timer = None
+
+    def _start(self, context: bpy.types.Context) -> pipeline.OptimizeJob | None:
+        try:
+            job = pipeline.OptimizeJob(context)
+        except AutoscoopError as e:
+            _fail(self, e)
+            return None
+        for area in job.run.blind_areas():
+            self.report({"WARNING"}, f"{area}: no line of sight to any target point")
+        return job
+
+    def _finish(self, context: bpy.types.Context, job: pipeline.OptimizeJob) -> set[str]:
+        doc = job.finish(context)
+        m = doc["metrics"]
+        level = "INFO" if m["coverage_fraction"] >= job.settings.rho else "WARNING"
+        self.report(
+            {level},
+            f"{m['sensors']} sensors on {m['masts']} masts cover "
+            f"{m['coverage_fraction']:.1%} ({doc['stop_reason']})",
+        )
+        return {"FINISHED"}
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        job = self._start(context)
+        if job is None:
+            return {"CANCELLED"}
+        return self._finish(context, job)
+
+    def invoke(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
+        if bpy.app.background or context.window is None:
+            return self.execute(context)
+        self._job = self._start(context)
+        if self._job is None:
+            return {"CANCELLED"}
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(0.05, window=context.window)
+        wm.modal_handler_add(self)
+        wm.progress_begin(0, 1000)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
+        job = self._job
+        assert job is not None
+        if event.type == "ESC":
+            job.cancel()
+            self._cleanup(context)
+            self.report({"INFO"}, "Optimization cancelled; nothing was changed")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        done = job.step(self._budget_s)
+        p = job.progress
+        context.window_manager.progress_update(int(1000 * p.fraction))
+        context.workspace.status_text_set(
+            f"AutoSCOOP: {p.sensors} sensors, coverage {p.coverage:.1%} of "
+            f"{p.rho:.0%}, epoch {p.epoch} ({p.phase})  -  Esc to cancel"
+        )
+        if not done:
+            return {"RUNNING_MODAL"}
+        self._cleanup(context)
+        return self._finish(context, job)
+
+    def cancel(self, context: bpy.types.Context) -> None:
+        if self._job is not None:
+            self._job.cancel()
+        self._cleanup(context)
+
+    def _cleanup(self, context: bpy.types.Context) -> None:
+        wm = context.window_manager
+        if self._timer is not None:
+            wm.event_timer_remove(self._timer)
+            self._timer = None
+        wm.progress_end()
+        context.workspace.status_text_set(None)
+
+
+class AUTOSCOOP_OT_evaluate(bpy.types.Operator):
+    """Coverage of the sensor cameras where they stand now (results and marked cameras)"""
+
+    bl_idname = names.OP_EVALUATE
+    bl_label = "Evaluate"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        try:
+            doc = pipeline.evaluate_cameras(context)
+        except AutoscoopError as e:
+            return _fail(self, e)
+        m = doc["metrics"]
+        self.report({"INFO"}, f"{m['sensors']} sensors cover {m['coverage_fraction']:.1%}")
+        return {"FINISHED"}
+
+
+class AUTOSCOOP_OT_mark(bpy.types.Operator):
+    """Mark the selected objects for AutoSCOOP (or unmark them)"""
+
+    bl_idname = names.OP_MARK
+    bl_label = "Mark"
+    bl_options = {"REGISTER", "UNDO"}
+
+    role: EnumProperty(  # type: ignore[valid-type]
+        name="Role",
+        items=[
+            (names.ROLE_TARGET, "Target area", "Selected curves: roads to watch"),
+            (names.ROLE_SENSOR_AREA, "Sensor area", "Selected curves: where masts may stand"),
+            (names.ROLE_SENSOR, "Sensor", "Selected cameras: sensors to evaluate"),
+            (names.ROLE_NONE, "Unmark", "Selected objects: no role, whatever their name"),
+        ],
+    )
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        wanted = "CAMERA" if self.role == names.ROLE_SENSOR else "CURVE"
+        chosen = list(context.selected_objects)
+        if not chosen:
+            self.report({"ERROR"}, "Nothing selected")
+            return {"CANCELLED"}
+        marked = 0
+        for obj in chosen:
+            if self.role != names.ROLE_NONE and obj.type != wanted:
+                self.report(
+                    {"WARNING"}, f"{obj.name}: is a {obj.type.lower()}, not a {wanted.lower()}"
+                )
+                continue
+            obj[names.ROLE_PROP] = self.role
+            marked += 1
+        pipeline.forget_area_report()
+        if marked == 0:
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"{marked} object(s) marked as {self.role.replace('_', ' ')}")
+        return {"FINISHED"}
+
+
+class AUTOSCOOP_OT_check(bpy.types.Operator):
+    """Check the scene: areas, curves, and line of sight from every sensor area"""
+
+    bl_idname = names.OP_CHECK
+    bl_label = "Check Scene"
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        try:
+            job = pipeline.OptimizeJob(context)
+        except AutoscoopError as e:
+            context.scene.autoscoop.check_text = str(e)
+            return _fail(self, e)
+        lines = [f"{a}: no line of sight to any target point" for a in job.run.blind_areas()]
+        lines += list(job.scene_model.warnings)
+        job.cancel()
+        context.scene.autoscoop.check_text = "\n".join(lines) or "OK"
+        for line in lines:
+            self.report({"WARNING"}, line)
+        if not lines:
+            self.report({"INFO"}, "Scene OK")
+        return {"FINISHED"}
+
+
+class AUTOSCOOP_OT_export(bpy.types.Operator):
+    """Write a report of the last result into the export folder"""
+
+    bl_idname = names.OP_EXPORT
+    bl_label = "Export"
+
+    kind: EnumProperty(  # type: ignore[valid-type]
+        name="Format",
+        items=[
+            ("JSON", "JSON", "result.json"),
+            ("CSV", "CSV", "sensors.csv"),
+            ("GEOJSON", "GeoJSON", "sensors.geojson"),
+            ("PNG", "PNG", "coverage.png"),
+        ],
+    )
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        try:
+            path = pipeline.export(context.scene, self.kind, context.scene.autoscoop.export_dir)
+        except AutoscoopError as e:
+            return _fail(self, e)
+        except OSError as e:
+            self.report({"ERROR"}, f"{context.scene.autoscoop.export_dir}: {e.strerror}")
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"Wrote {path}")
+        return {"FINISHED"}
+
+
+class AUTOSCOOP_OT_clear_results(bpy.types.Operator):
+    """Delete the results collection (never the user's own objects)"""
+
+    bl_idname = names.OP_CLEAR
+    bl_label = "Clear Results"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        from .scene.spawn import remove_results
+
+        remove_results(context.scene)
+        context.scene.autoscoop.result_json = ""
+        return {"FINISHED"}
+
+
+classes = (
+    AUTOSCOOP_OT_optimize,
+    AUTOSCOOP_OT_evaluate,
+    AUTOSCOOP_OT_mark,
+    AUTOSCOOP_OT_check,
+    AUTOSCOOP_OT_export,
+    AUTOSCOOP_OT_clear_results,
+)
+register, unregister = bpy.utils.register_classes_factory(classes)

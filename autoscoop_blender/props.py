@@ -1,0 +1,180 @@
+"""Scene settings of the panel: ``Scene.autoscoop`` (one PropertyGroup).
+
+The sensor fields mirror ``core.sensors.SensorModel``; choosing a preset copies its
+numbers into them, and editing a number keeps the preset name but says "(edited)".
+Everything the optimizer reads is converted in ``scene.pipeline``; nothing here runs
+the optimization.
+"""
+
+from __future__ import annotations
+
+import bpy
+from bpy.props import (
+    BoolProperty,
+    EnumProperty,
+    FloatProperty,
+    IntProperty,
+    PointerProperty,
+    StringProperty,
+)
+
+from .core.sensors import PRESETS, SensorModel
+
+_PRESET_ITEMS = [
+    ("paper_camera", "Paper camera", "The paper's Table I camera: 80 x 80 deg, 80 m, 7 m mast"),
+    ("roadside_lidar", "Roadside lidar", "A 64-beam spinning lidar: 360 x 33.2 deg, 80 m"),
+    ("traffic_radar", "Traffic radar", "A 77 GHz traffic radar: 100 x 16 deg, 150 m"),
+]
+_SENSOR_FIELDS = (
+    "kind",
+    "pattern",
+    "h_fov_deg",
+    "v_fov_deg",
+    "range_m",
+    "mount_height_m",
+    "pitch_min_deg",
+    "pitch_max_deg",
+    "rays_h",
+    "rays_v",
+    "min_density_per_m2",
+)
+
+
+def _apply_preset(self: AUTOSCOOP_PG_settings, _context: bpy.types.Context) -> None:
+    model = PRESETS[self.preset]
+    self["_loading"] = True
+    try:
+        for name in _SENSOR_FIELDS:
+            setattr(
+                self,
+                name,
+                getattr(model, name).upper()
+                if name in ("kind", "pattern")
+                else getattr(model, name),
+            )
+    finally:
+        self["_loading"] = False
+    _sensor_changed(self, _context)
+
+
+def _sensor_changed(self: AUTOSCOOP_PG_settings, _context: bpy.types.Context) -> None:
+    """Recompute the flat-ground footprint shown under the sensor settings."""
+    if self.get("_loading"):
+        return
+    from .scene.pipeline import flat_footprint_text
+
+    self.flat_footprint = flat_footprint_text(self)
+
+
+def _toggle_results(self: AUTOSCOOP_PG_settings, context: bpy.types.Context) -> None:
+    from .scene.pipeline import apply_result_visibility
+
+    apply_result_visibility(context.scene)
+
+
+class AUTOSCOOP_PG_settings(bpy.types.PropertyGroup):
+    # --- sensor ----------------------------------------------------------------
+    preset: EnumProperty(  # type: ignore[valid-type]
+        name="Preset", items=_PRESET_ITEMS, default="paper_camera", update=_apply_preset
+    )
+    kind: EnumProperty(  # type: ignore[valid-type]
+        name="Kind",
+        items=[("CAMERA", "Camera", ""), ("LIDAR", "Lidar", ""), ("RADAR", "Radar", "")],
+        default="CAMERA",
+        update=_sensor_changed,
+    )
+    pattern: EnumProperty(  # type: ignore[valid-type]
+        name="Ray pattern",
+        items=[
+            ("ANGULAR", "Angular", "Rays evenly spaced in angle (spinning lidar, ray-cast sensor)"),
+            ("PINHOLE", "Pinhole", "Rays through an even grid on an image plane (camera)"),
+        ],
+        default="ANGULAR",
+        update=_sensor_changed,
+    )
+    h_fov_deg: FloatProperty(  # type: ignore[valid-type]
+        name="Horizontal FoV", default=80.0, min=0.1, max=360.0, update=_sensor_changed
+    )
+    v_fov_deg: FloatProperty(  # type: ignore[valid-type]
+        name="Vertical FoV", default=80.0, min=0.1, max=179.0, update=_sensor_changed
+    )
+    range_m: FloatProperty(  # type: ignore[valid-type]
+        name="Range", default=80.0, min=0.1, max=2000.0, unit="LENGTH", update=_sensor_changed
+    )
+    mount_height_m: FloatProperty(  # type: ignore[valid-type]
+        name="Mount height", default=7.0, min=0.0, max=200.0, unit="LENGTH", update=_sensor_changed
+    )
+    pitch_min_deg: FloatProperty(  # type: ignore[valid-type]
+        name="Pitch min", default=31.0, min=-90.0, max=90.0, update=_sensor_changed
+    )
+    pitch_max_deg: FloatProperty(  # type: ignore[valid-type]
+        name="Pitch max", default=70.0, min=-90.0, max=90.0, update=_sensor_changed
+    )
+    rays_h: IntProperty(name="Rays across", default=192, min=1, max=100_000, update=_sensor_changed)  # type: ignore[valid-type]
+    rays_v: IntProperty(name="Rays down", default=160, min=1, max=100_000, update=_sensor_changed)  # type: ignore[valid-type]
+    min_density_per_m2: FloatProperty(  # type: ignore[valid-type]
+        name="Detection threshold",
+        description="Minimum point density (points per m^2, XY projection) for a point to count",
+        default=1.727,
+        min=0.0,
+        update=_sensor_changed,
+    )
+    flat_footprint: StringProperty(name="Flat footprint", default="")  # type: ignore[valid-type]
+    check_text: StringProperty(name="Scene check", default="")  # type: ignore[valid-type]
+
+    # --- optimizer ---------------------------------------------------------------
+    method: EnumProperty(  # type: ignore[valid-type]
+        name="Coverage method",
+        items=[
+            ("targeted", "Targeted", "One sight ray per target point that can count (fast, exact)"),
+            ("pointcloud", "Point cloud", "The paper's ray pattern and alpha shape (slow)"),
+        ],
+        default="targeted",
+    )
+    rho: FloatProperty(  # type: ignore[valid-type]
+        name="Coverage goal", default=0.97, min=0.01, max=1.0, subtype="FACTOR"
+    )
+    seed: IntProperty(name="Seed", default=0, min=0)  # type: ignore[valid-type]
+    grid_m: FloatProperty(  # type: ignore[valid-type]
+        name="Grid",
+        default=1.0,
+        min=0.05,
+        max=20.0,
+        unit="LENGTH",
+        description="Target grid spacing",
+    )
+    show_es: BoolProperty(name="Evolution strategy", default=False)  # type: ignore[valid-type]
+    es_mu: IntProperty(name="Parents (mu)", default=40, min=1, max=10_000)  # type: ignore[valid-type]
+    es_lam: IntProperty(name="Offspring (lambda)", default=20, min=1, max=10_000)  # type: ignore[valid-type]
+    es_eps: FloatProperty(name="Convergence eps", default=0.2, min=0.0, max=1.0)  # type: ignore[valid-type]
+    es_max_epochs: IntProperty(name="Max epochs", default=100, min=0, max=100_000)  # type: ignore[valid-type]
+
+    # --- results -----------------------------------------------------------------
+    result_json: StringProperty(default="")  # type: ignore[valid-type]
+    show_frusta: BoolProperty(name="Frusta", default=True, update=_toggle_results)  # type: ignore[valid-type]
+    show_footprints: BoolProperty(name="Footprints", default=True, update=_toggle_results)  # type: ignore[valid-type]
+    show_coverage: BoolProperty(name="Coverage", default=True, update=_toggle_results)  # type: ignore[valid-type]
+    export_dir: StringProperty(  # type: ignore[valid-type]
+        name="Export to", default="//autoscoop/", subtype="DIR_PATH"
+    )
+
+    def sensor_model(self) -> SensorModel:
+        """The model the panel describes (not yet validated)."""
+        values = {name: getattr(self, name) for name in _SENSOR_FIELDS}
+        values["kind"] = values["kind"].lower()
+        values["pattern"] = values["pattern"].lower()
+        return SensorModel(**values)
+
+
+classes = (AUTOSCOOP_PG_settings,)
+_register, _unregister = bpy.utils.register_classes_factory(classes)
+
+
+def register() -> None:
+    _register()
+    bpy.types.Scene.autoscoop = PointerProperty(type=AUTOSCOOP_PG_settings)
+
+
+def unregister() -> None:
+    del bpy.types.Scene.autoscoop
+    _unregister()

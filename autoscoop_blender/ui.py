@@ -1,0 +1,184 @@
+"""The sidebar panel "AutoSCOOP" (3D viewport, N panel): scene, sensor, optimizer, run,
+results. Problems show as red lines before the user presses Optimize."""
+
+from __future__ import annotations
+
+import json
+
+import bpy
+
+from . import names
+from .scene import pipeline
+
+
+class _Panel:
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = names.PANEL_CATEGORY
+
+
+class AUTOSCOOP_PT_main(_Panel, bpy.types.Panel):
+    bl_label = "AutoSCOOP"
+
+    def draw(self, context: bpy.types.Context) -> None:
+        self.layout.label(text="Road-side sensor placement", icon="OUTLINER_OB_CAMERA")
+
+
+class AUTOSCOOP_PT_scene(_Panel, bpy.types.Panel):
+    bl_label = "Scene"
+    bl_parent_id = "AUTOSCOOP_PT_main"
+
+    def draw(self, context: bpy.types.Context) -> None:
+        layout = self.layout
+        rows = pipeline.area_report(context.scene)
+        for role, title in (
+            (names.ROLE_TARGET, "Target areas"),
+            (names.ROLE_SENSOR_AREA, "Sensor areas"),
+        ):
+            box = layout.box()
+            mine = [r for r in rows if r[0] == role]
+            box.label(text=f"{title}: {len(mine)}")
+            if not mine:
+                line = box.row()
+                line.alert = True
+                line.label(text="none: mark curves below", icon="ERROR")
+            for _, name, info in mine:
+                line = box.row()
+                line.alert = not info.endswith("m^2")
+                line.label(text=f"{name}: {info}", icon="ERROR" if line.alert else "CURVE_DATA")
+        col = layout.column(align=True)
+        row = col.row(align=True)
+        row.operator(names.OP_MARK, text="Target").role = names.ROLE_TARGET
+        row.operator(names.OP_MARK, text="Sensor Area").role = names.ROLE_SENSOR_AREA
+        row = col.row(align=True)
+        row.operator(names.OP_MARK, text="Camera as Sensor").role = names.ROLE_SENSOR
+        row.operator(names.OP_MARK, text="Unmark").role = names.ROLE_NONE
+        layout.operator(names.OP_CHECK, icon="VIEWZOOM")
+        check = context.scene.autoscoop.check_text
+        for line in check.splitlines():
+            row = layout.row()
+            row.alert = line != "OK"
+            row.label(text=line, icon="ERROR" if row.alert else "CHECKMARK")
+
+
+class AUTOSCOOP_PT_sensor(_Panel, bpy.types.Panel):
+    bl_label = "Sensor"
+    bl_parent_id = "AUTOSCOOP_PT_main"
+
+    def draw(self, context: bpy.types.Context) -> None:
+        props = context.scene.autoscoop
+        layout = self.layout
+        layout.use_property_split = True
+        layout.prop(props, "preset")
+        col = layout.column(align=True)
+        for name in ("kind", "pattern", "h_fov_deg", "v_fov_deg", "range_m", "mount_height_m"):
+            col.prop(props, name)
+        col = layout.column(align=True)
+        col.prop(props, "pitch_min_deg")
+        col.prop(props, "pitch_max_deg")
+        col = layout.column(align=True)
+        col.prop(props, "rays_h")
+        col.prop(props, "rays_v")
+        layout.prop(props, "min_density_per_m2")
+        text = props.flat_footprint or pipeline.flat_footprint_text(props)
+        row = layout.row()
+        row.alert = text.startswith("invalid")
+        row.label(text=text, icon="ERROR" if row.alert else "INFO")
+
+
+class AUTOSCOOP_PT_optimizer(_Panel, bpy.types.Panel):
+    bl_label = "Optimizer"
+    bl_parent_id = "AUTOSCOOP_PT_main"
+
+    def draw(self, context: bpy.types.Context) -> None:
+        props = context.scene.autoscoop
+        layout = self.layout
+        layout.use_property_split = True
+        for name in ("method", "rho", "seed", "grid_m"):
+            layout.prop(props, name)
+        row = layout.row()
+        row.use_property_split = False
+        row.prop(
+            props, "show_es", icon="TRIA_DOWN" if props.show_es else "TRIA_RIGHT", emboss=False
+        )
+        if props.show_es:
+            col = layout.column(align=True)
+            for name in ("es_mu", "es_lam", "es_eps", "es_max_epochs"):
+                col.prop(props, name)
+
+
+class AUTOSCOOP_PT_run(_Panel, bpy.types.Panel):
+    bl_label = "Run"
+    bl_parent_id = "AUTOSCOOP_PT_main"
+
+    def draw(self, context: bpy.types.Context) -> None:
+        layout = self.layout
+        row = layout.row()
+        row.scale_y = 1.5
+        row.operator(names.OP_OPTIMIZE, icon="PLAY")
+        row = layout.row(align=True)
+        row.operator(names.OP_EVALUATE, icon="HIDE_OFF")
+        row.operator(names.OP_CLEAR, icon="TRASH")
+
+
+class AUTOSCOOP_PT_results(_Panel, bpy.types.Panel):
+    bl_label = "Results"
+    bl_parent_id = "AUTOSCOOP_PT_main"
+
+    def draw(self, context: bpy.types.Context) -> None:
+        props = context.scene.autoscoop
+        layout = self.layout
+        if not props.result_json:
+            layout.label(text="No result yet")
+            return
+        doc = json.loads(props.result_json)
+        m = doc.get("metrics", {})
+        grid = layout.grid_flow(columns=2, even_columns=True)
+        for label, key, fmt in (
+            ("Coverage", "coverage_fraction", "{:.1%}"),
+            ("Sensors", "sensors", "{}"),
+            ("Masts", "masts", "{}"),
+            ("Cluster ratio", "cluster_ratio", "{:.2f}"),
+            ("Overlap factor", "overlap_factor", "{:.2f}"),
+            ("Time", "wall_s", "{:.1f} s"),
+        ):
+            value = m.get(key)
+            grid.label(text=label)
+            grid.label(text="-" if value is None else fmt.format(value))
+        if doc.get("stop_reason"):
+            layout.label(text=doc["stop_reason"], icon="INFO")
+        row = layout.row(align=True)
+        row.prop(props, "show_frusta", toggle=True)
+        row.prop(props, "show_footprints", toggle=True)
+        row.prop(props, "show_coverage", toggle=True)
+        layout.prop(props, "export_dir")
+        row = layout.row(align=True)
+        for kind, text in (
+            ("JSON", "JSON"),
+            ("CSV", "CSV"),
+            ("GEOJSON", "GeoJSON"),
+            ("PNG", "PNG"),
+        ):
+            row.operator(names.OP_EXPORT, text=text).kind = kind
+
+
+classes = (
+    AUTOSCOOP_PT_main,
+    AUTOSCOOP_PT_scene,
+    AUTOSCOOP_PT_sensor,
+    AUTOSCOOP_PT_optimizer,
+    AUTOSCOOP_PT_run,
+    AUTOSCOOP_PT_results,
+)
+_register, _unregister = bpy.utils.register_classes_factory(classes)
+
+
+def register() -> None:
+    _register()
+    bpy.app.handlers.depsgraph_update_post.append(pipeline.forget_area_report)
+
+
+def unregister() -> None:
+    if pipeline.forget_area_report in bpy.app.handlers.depsgraph_update_post:
+        bpy.app.handlers.depsgraph_update_post.remove(pipeline.forget_area_report)
+    _unregister()
