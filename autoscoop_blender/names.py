@@ -19,6 +19,7 @@ ROLE_SENSOR_AREA = "sensor_area"  # a curve: sensor area
 ROLE_SENSOR = "sensor"  # a camera: a sensor to evaluate
 ROLE_NONE = "none"  # unmarked: not an area even if the name says so
 IGNORE_PROP = "autoscoop_ignore"  # True: the mesh does not occlude
+OVERHANG_PROP = "autoscoop_overhang"  # True: occludes, but nothing stands on it
 HEIGHT_PROP = "height_m"  # on a sensor area: mast height there, metres
 
 # Everything AutoSCOOP creates goes into this collection and nowhere else.

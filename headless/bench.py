@@ -27,8 +27,8 @@ from headless.files import json_text, load_scene
 
 def coverage(args: argparse.Namespace) -> int:
     """Rays per second of the BVH caster; seconds and rays per pose for each method."""
-    scene, caster = load_scene(args.scene)
     model = PAPER_CAMERA
+    scene, caster = load_scene(args.scene, model.range_m)
     t0 = time.perf_counter()
     grid = GroundGrid(scene, caster, 1.0, reach_m=model.range_m)
     grid_s = time.perf_counter() - t0

@@ -37,7 +37,10 @@ def build_parser() -> argparse.ArgumentParser:
         "--min-density", type=float, default=None, help="detection threshold, points/m^2"
     )
     cov.add_argument(
-        "--oversample", type=int, default=1, help="pointcloud: rays per pattern ray, squared"
+        "--oversample",
+        type=int,
+        default=None,
+        help="pointcloud: rays per pattern ray per axis (default: from spacing, range, grid)",
     )
     cov.add_argument("--alpha", type=float, default=1.0, help="pointcloud: alpha / spacing")
     cov.add_argument("--out", required=True, help="result JSON")
@@ -55,6 +58,12 @@ def build_parser() -> argparse.ArgumentParser:
     opt.add_argument("--config", help="TOML file of settings and model")
     opt.add_argument("--out-dir", default="out", help="output folder (default out/)")
     opt.add_argument("--resume", action="store_true", help="go on from the checkpoint")
+    opt.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        help="processes that evaluate in parallel (default: one per core; same answer)",
+    )
 
     bld = sub.add_parser("build", help="build the extension zips (one per platform)")
     bld.add_argument("--out-dir", default="dist", help="default dist/")

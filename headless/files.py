@@ -32,13 +32,16 @@ def open_blend(path: str | None) -> str:
     return str(p)
 
 
-def load_scene(path: str | None):
-    """Open a .blend and return its (SceneModel, BVHCaster)."""
+def load_scene(path: str | None, reach_m: float | None = None):
+    """Open a .blend and return its (SceneModel, BVHCaster); with ``reach_m`` (the
+    longest sensor range) occluders no sight line can meet are left out."""
     from autoscoop_blender.scene.bvh import BVHCaster
     from autoscoop_blender.scene.extract import extract_scene
 
     open_blend(path)
     scene = extract_scene()
+    if reach_m is not None:
+        scene = scene.cropped(reach_m)
     return scene, BVHCaster.from_scene(scene)
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import tempfile
 import tomllib
@@ -34,7 +35,7 @@ def coverage(args: argparse.Namespace) -> int:
         alpha=args.alpha,
     ).validated()
     specs = read_sensors(args.sensors)
-    scene, caster = load_scene(args.scene)
+    scene, caster = load_scene(args.scene, max(s.model.range_m for s in specs))
     result = evaluate_sensors(scene, caster, specs, settings)
     for w in result.warnings:
         print(f"warning: {w}", file=sys.stderr)
@@ -64,7 +65,7 @@ def optimize(args: argparse.Namespace) -> int:
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"{out_dir}: exists and is not a folder")
 
-    scene, caster = load_scene(args.scene or default_scene())
+    scene, caster = load_scene(args.scene or default_scene(), model.range_m)
     for w in scene.warnings:
         print(f"warning: {w}", file=sys.stderr)
     checkpoint = Checkpoint(
@@ -79,7 +80,12 @@ def optimize(args: argparse.Namespace) -> int:
     resume = checkpoint.resume() if args.resume else []
     if not args.resume:
         checkpoint.start()
-    run = OptimizationRun(scene, caster, model, settings, resume, on_fixed=checkpoint.append)
+    workers = (os.cpu_count() or 1) if args.workers is None else args.workers
+    if workers < 1:
+        raise InputError(f"--workers {workers}: must be at least 1")
+    run = OptimizationRun(
+        scene, caster, model, settings, resume, on_fixed=checkpoint.append, workers=workers
+    )
     if resume:
         print(f"resuming after {len(resume)} fixed sensor(s)", file=sys.stderr)
     bar = ProgressBar()
@@ -87,6 +93,7 @@ def optimize(args: argparse.Namespace) -> int:
         for progress in run.steps():
             bar.update(progress)
     except KeyboardInterrupt:
+        run.close()
         bar.close()
         print(
             f"interrupted: {len(run.sensors)} sensor(s) kept in {checkpoint.path}; "

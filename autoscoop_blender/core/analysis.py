@@ -28,7 +28,7 @@ from .errors import InputError
 from .grid import GroundGrid
 from .masts import group_positions
 from .placement import MastRecord, Placement, SensorRecord
-from .raycast import RayCaster
+from .raycast import RayCaster, inside_solid
 from .scene_model import SceneModel
 from .sensor_file import SensorSpec
 from .sensors import SensorModel
@@ -38,15 +38,16 @@ from .sensors import SensorModel
 class CoverageSettings:
     """How coverage is computed. Lengths in metres, densities in points/m^2.
 
-    ``min_density_per_m2`` overrides every model's threshold when set. ``oversample``,
-    ``alpha`` and ``alpha_m`` are the point-cloud method's knobs.
+    ``min_density_per_m2`` overrides every model's threshold when set. ``oversample``
+    (None: derived from the pattern, range and grid), ``alpha`` and ``alpha_m`` are the
+    point-cloud method's knobs.
     """
 
     method: str = "targeted"
     grid_m: float = 1.0
     target_height_m: float = 0.0
     min_density_per_m2: float | None = None
-    oversample: int = 1
+    oversample: int | None = None
     alpha: float = 1.0
     alpha_m: float | None = None
 
@@ -56,7 +57,6 @@ class CoverageSettings:
         checks = [
             ("--grid", self.grid_m, self.grid_m > 0),
             ("--target-height", self.target_height_m, self.target_height_m >= 0),
-            ("oversample", self.oversample, self.oversample >= 1),
             ("alpha", self.alpha, self.alpha > 0),
         ]
         if self.min_density_per_m2 is not None:
@@ -64,6 +64,8 @@ class CoverageSettings:
             checks.append(("--min-density", d, d >= 0))
         if self.alpha_m is not None:
             checks.append(("alpha_m", self.alpha_m, self.alpha_m > 0))
+        if self.oversample is not None:
+            checks.append(("--oversample", self.oversample, self.oversample >= 1))
         for name, value, ok in checks:
             if not (math.isfinite(value) and ok):
                 raise InputError(f"{name} {value}: out of range")
@@ -258,6 +260,11 @@ def evaluate_sensors(
         if height is None:
             height = model.mount_height_m
         pose = place(grid, float(x), float(y), height, spec.pitch_deg, spec.yaw_deg)
+        if inside_solid(caster, pose.position)[0]:
+            warnings.append(
+                f"sensor {k} at ({spec.x:g}, {spec.y:g}) stands inside an occluder "
+                "(or under the ground): it sees nothing"
+            )
         coverages.append(evaluator.evaluate(model, pose, outside_band_m=math.inf, visibility=True))
         area_names.append(area.name if area is not None else None)
     return CoverageResult(

@@ -126,11 +126,20 @@ def clear_sight(
     caster: RayCaster, s: F64, lines: SightLines, rows: NDArray[np.int_]
 ) -> NDArray[np.bool_]:
     """(len(rows),) whether nothing blocks the sight line to each of ``rows``; one ray
-    each, stopping just short of the point."""
+    each, stopping just short of the point.
+
+    A hit within ``SIGHT_MARGIN_M`` of the sensor is the surface the sensor itself
+    stands on (a mast of height 0): those rays are cast again from just past it.
+    """
     if len(rows) == 0:
         return np.zeros(0, dtype=bool)
+    d = lines.d[rows]
     limit = lines.dist[rows] * (1 - 1e-7) - SIGHT_MARGIN_M
-    hit = caster.cast(np.broadcast_to(s, (len(rows), 3)), lines.d[rows], limit)
+    hit = caster.cast(np.broadcast_to(s, (len(rows), 3)), d, limit)
+    own = np.flatnonzero(hit < SIGHT_MARGIN_M)
+    if len(own):
+        start = s + d[own] * SIGHT_MARGIN_M
+        hit[own] = caster.cast(start, d[own], np.maximum(limit[own] - SIGHT_MARGIN_M, 0.0))
     return ~np.isfinite(hit)
 
 
@@ -205,11 +214,20 @@ class TargetedEvaluator:
         )
 
 
+def auto_oversample(model: SensorModel, grid_m: float) -> int:
+    """Rays per pattern ray (per axis) so that neighbouring rays land at most one grid
+    cell apart across the ray at the sensor's full range: ceil(spacing x range / grid).
+    1 for the paper camera on a 1 m grid (0.5 deg x 80 m = 0.70 m): Table I's rays."""
+    h = math.radians(model.h_fov_deg) / model.rays_h
+    v = math.radians(model.v_fov_deg) / model.rays_v
+    return max(1, math.ceil(max(h, v) * model.range_m / grid_m - 1e-9))
+
+
 class PointcloudEvaluator:
     """The paper's method: ray pattern -> hits -> density -> alpha-shape footprint.
 
     ``oversample`` casts ``oversample^2`` rays per pattern ray (densities stay in the
-    sensor's own units). ``alpha`` scales the alpha radius to the local ray spacing
+    sensor's own units); None picks ``auto_oversample`` per model. ``alpha`` scales the alpha radius to the local ray spacing
     (a triangle is kept when its circumradius is at most ``alpha`` times the largest
     spacing at its corners); ``alpha_m`` instead fixes the radius in metres.
     """
@@ -220,13 +238,13 @@ class PointcloudEvaluator:
         self,
         grid: GroundGrid,
         caster: RayCaster,
-        oversample: int = 1,
+        oversample: int | None = None,
         alpha: float = 1.0,
         alpha_m: float | None = None,
     ) -> None:
         self.grid = grid
         self.caster = caster
-        self.oversample = int(oversample)
+        self.oversample = oversample
         self.alpha = float(alpha)
         self.alpha_m = alpha_m
         self._patterns: dict[SensorModel, F64] = {}
@@ -237,9 +255,15 @@ class PointcloudEvaluator:
             return self.alpha_m
         return self.alpha * spacing[tri.simplices].max(axis=1)
 
+    def rays_per_pattern_ray(self, model: SensorModel) -> int:
+        """The oversampling used for ``model`` (per axis)."""
+        if self.oversample is not None:
+            return int(self.oversample)
+        return auto_oversample(model, self.grid.spacing)
+
     def _pattern(self, model: SensorModel) -> F64:
         if model not in self._patterns:
-            self._patterns[model] = model.pattern_directions(self.oversample)
+            self._patterns[model] = model.pattern_directions(self.rays_per_pattern_ray(model))
         return self._patterns[model]
 
     def evaluate(
@@ -259,7 +283,7 @@ class PointcloudEvaluator:
         hit = np.isfinite(dist)
         xy = np.where(hit[..., None], s[:2] + dirs[..., :2] * dist[..., None], np.nan)
 
-        density, spacing = _pattern_density(xy, hit, self.oversample**2)
+        density, spacing = _pattern_density(xy, hit, self.rays_per_pattern_ray(model) ** 2)
         pts, pts_density, pts_spacing = xy[hit], density[hit], spacing[hit]
         cells, ordinal = _cells_in_reach(grid, s, model.range_m, outside_band_m)
         is_target = ordinal >= 0

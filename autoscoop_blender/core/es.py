@@ -25,7 +25,7 @@ cached sight lines and the reported pose is exactly the evaluated one.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -126,8 +126,10 @@ class SearchSpace:
 class SensorSearch:
     """One sensor's ES, driven one evaluation at a time (see module docstring).
 
-    ``evaluate(individual (4,)) -> fitness``. After ``steps()`` is exhausted,
-    ``best``, ``best_fitness`` and ``epochs`` hold the answer.
+    ``evaluate(population (P, 4))`` yields the P fitness values in order, lazily: one
+    evaluation per value when run in this process, or a whole batch at once when the
+    caller farms them out. After ``steps()`` is exhausted, ``best``, ``best_fitness``
+    and ``epochs`` hold the answer.
     """
 
     def __init__(
@@ -135,7 +137,7 @@ class SensorSearch:
         space: SearchSpace,
         params: ESParams,
         rng: np.random.Generator,
-        evaluate: Callable[[F64], float],
+        evaluate: Callable[[F64], Iterable[float]],
     ) -> None:
         self.space = space
         self.params = params
@@ -147,8 +149,7 @@ class SensorSearch:
         self.evaluations = 0
 
     def _score(self, pop: F64) -> Iterator[float]:
-        for ind in pop:
-            f = self.evaluate(ind)
+        for ind, f in zip(pop, self.evaluate(pop)):
             self.evaluations += 1
             if f > self.best_fitness:
                 self.best_fitness, self.best = f, ind.copy()

@@ -42,7 +42,9 @@ class GroundGrid:
         if not (math.isfinite(spacing) and spacing > 0):
             raise InputError(f"grid spacing {spacing} must be > 0")
         self.scene = scene
-        self.caster = FloorCaster(caster, scene.floor_z())
+        # Drops land on the top surface, but not on overhangs (a caster may offer
+        # ``ground``: the same scene without them).
+        self.caster = FloorCaster(getattr(caster, "ground", caster), scene.floor_z())
         self.spacing = float(spacing)
         self.cell_area = self.spacing**2
         self.target_height_m = float(target_height_m)

@@ -58,9 +58,10 @@ class OptimizeSettings:
     default: finer than a planner needs for a mast, coarse enough that the ES
     revisits positions and reuses their sight rays). mast_join_m:
     sensors this close share a mast. patience: searches in a row that add nothing
-    before giving up. max_sensors: None derives a generous cap from the target area.
+    before giving up. max_sensors: a cap (None: none; the run still ends, since each
+    sensor adds at least one target point).
     cache: targeted only, cache sight lines per position (same answers, fewer rays).
-    oversample, alpha: pointcloud knobs (see ``coverage.PointcloudEvaluator``).
+    oversample (None: derived), alpha: pointcloud knobs (``coverage.PointcloudEvaluator``).
     """
 
     method: str = "targeted"
@@ -73,7 +74,7 @@ class OptimizeSettings:
     patience: int = 2
     max_sensors: int | None = None
     cache: bool = True
-    oversample: int = 1
+    oversample: int | None = None
     alpha: float = 1.0
     es: ESParams = field(default_factory=ESParams)
     fitness: FitnessParams = field(default_factory=FitnessParams)
@@ -103,7 +104,6 @@ class OptimizeSettings:
             ("rho", 0 < self.rho <= 1),
             ("mast_join_m", self.mast_join_m >= 0),
             ("patience", self.patience >= 1),
-            ("oversample", self.oversample >= 1),
             ("alpha", self.alpha > 0),
             ("es.mu", self.es.mu >= 1),
             ("es.lam", self.es.lam >= 1),
@@ -117,6 +117,8 @@ class OptimizeSettings:
             checks.append(("position_step_m", self.position_step_m > 0))
         if self.max_sensors is not None:
             checks.append(("max_sensors", self.max_sensors >= 1))
+        if self.oversample is not None:
+            checks.append(("oversample", self.oversample >= 1))
         for name, ok in checks:
             value = _lookup(self, name)
             if isinstance(value, float) and not math.isfinite(value):
@@ -127,20 +129,22 @@ class OptimizeSettings:
 
 
 def _build(kind: type, table: Mapping[str, Any], label: str) -> Any:
-    known = {f.name: f for f in fields(kind)}
-    unknown = sorted(set(table) - set(known))
+    """``kind`` with the defaults replaced by ``table``; InputError for unknown keys or
+    values of the wrong type (every setting is a number, except these)."""
+    known = {f.name for f in fields(kind)}
+    unknown = sorted(set(table) - known)
     if unknown:
         raise InputError(f"{label}: unknown setting(s) {', '.join(unknown)}")
-    defaults = kind()
     for key, value in table.items():
-        want = type(getattr(defaults, key))
-        if key in ("es", "fitness"):
-            continue
-        if want in (int, float) and (
-            isinstance(value, bool) or not isinstance(value, (int, float))
-        ):
-            raise InputError(f"{label}: {key} must be a number, got {value!r}")
-    return replace(defaults, **table)
+        want = {"method": str, "cache": bool, "es": ESParams, "fitness": FitnessParams}.get(key)
+        if want is not None:
+            ok = isinstance(value, want)
+        else:
+            ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+        if not ok:
+            kind_name = want.__name__ if want in (str, bool) else "number"
+            raise InputError(f"{label}: {key} must be a {kind_name}, got {value!r}")
+    return replace(kind(), **table)
 
 
 def _lookup(obj: Any, dotted: str) -> Any:
@@ -244,6 +248,8 @@ class OptimizationRun:
     resume: records of sensors fixed by an earlier run with the same inputs (as
     given to ``on_fixed``); the run starts after the last of them, with its random
     state. on_fixed(record): called with a JSON-ready dict after each fixed sensor.
+    workers: processes that evaluate each ES population in parallel (same answer;
+    progress then comes a population at a time).
     """
 
     def __init__(
@@ -254,6 +260,7 @@ class OptimizationRun:
         settings: OptimizeSettings,
         resume: list[dict[str, Any]] = (),  # type: ignore[assignment]
         on_fixed: Callable[[dict[str, Any]], None] | None = None,
+        workers: int = 1,
     ) -> None:
         self.settings = settings = settings.validated()
         self.scene = scene
@@ -285,12 +292,16 @@ class OptimizationRun:
         ref = reference_footprint_m2(model, settings.grid_m)
         self.min_gain = max(1, round(0.01 * ref / self.grid.cell_area))
         self._result: OptimizationResult | None = None
-        if settings.max_sensors is not None:
-            self.max_sensors = settings.max_sensors
-        else:
-            self.max_sensors = int(4 * self.grid.target_area_m2 / max(ref, 1.0)) + 20
+        # Every fixed sensor adds at least one target point, so without a cap the run
+        # still ends after at most one sensor per point.
+        self.max_sensors = settings.max_sensors or self.grid.n_targets
         for record in resume:
             self._replay(record)
+        # Worker processes evaluate populations in parallel; each builds the same run
+        # from a pickled copy (the caster must pickle, as BVHCaster does).
+        self._pool: _Pool | None = None
+        if workers > 1:
+            self._pool = _Pool(workers, (scene, caster, model, settings))
 
     # --- poses -------------------------------------------------------------------
     def height_at(self, x: float, y: float) -> float:
@@ -314,6 +325,32 @@ class OptimizationRun:
         self.sight_rays += cov.rays
         self.evaluations += 1
         return cov, fitness(self.grid, cov, self.fixed, self.settings.fitness)
+
+    def _fitness_of(self, pop: F64) -> Iterator[float]:
+        """f_s of each individual (P, 4), in order: here one by one, or by the worker
+        processes a batch at a time (same numbers either way: evaluation is exact)."""
+        if self._pool is None:
+            for ind in pop:
+                yield self.evaluate(self.pose(*ind))[1].f_s
+            return
+        covered = np.packbits(self.fixed.covered)
+        chunks = np.array_split(pop, self._pool.workers)
+        futures = [
+            self._pool.executor.submit(_score_in_worker, c, covered, self.fixed.positions)
+            for c in chunks
+            if len(c)
+        ]
+        for future in futures:
+            fits, rays = future.result()
+            self.sight_rays += rays
+            self.evaluations += len(fits)
+            yield from fits
+
+    def close(self) -> None:
+        """Stop the worker processes (also done when the run finishes)."""
+        if self._pool is not None:
+            self._pool.executor.shutdown(cancel_futures=True)
+            self._pool = None
 
     # --- the run -----------------------------------------------------------------
     @property
@@ -367,6 +404,7 @@ class OptimizationRun:
             stale = 0
             self._fix(pose, cov, fit.f_s, epochs, evals)
             yield self._progress("fixed")
+        self.close()
         yield self._progress("masts")
         masts = self._group_masts()
         yield self._progress("report")
@@ -376,12 +414,7 @@ class OptimizationRun:
     def _search(self, initial: F64 | None):
         """One ES for the next sensor (yields progress); returns its best
         (pose, coverage, fitness, epochs, evaluations)."""
-        search = SensorSearch(
-            self.space,
-            self.settings.es,
-            self.rng,
-            lambda ind: self.evaluate(self.pose(*ind))[1].f_s,
-        )
+        search = SensorSearch(self.space, self.settings.es, self.rng, self._fitness_of)
         for epoch in search.steps(initial):
             yield self._progress("search", epoch)
         assert search.best is not None
@@ -564,6 +597,43 @@ class OptimizationRun:
             uncovered=uncovered_parts(self.grid, summary.n_covered == 0, self.scene),
             metrics=metrics,
         )
+
+
+class _Pool:
+    """Worker processes, each holding its own OptimizationRun of the same inputs."""
+
+    def __init__(self, workers: int, inputs: tuple) -> None:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        self.workers = workers
+        self.executor = ProcessPoolExecutor(
+            max_workers=workers,
+            mp_context=multiprocessing.get_context("spawn"),
+            initializer=_start_worker,
+            initargs=inputs,
+        )
+
+
+_WORKER_RUN: OptimizationRun | None = None
+
+
+def _start_worker(scene, caster, model, settings) -> None:
+    global _WORKER_RUN
+    _WORKER_RUN = OptimizationRun(scene, caster, model, settings)
+
+
+def _score_in_worker(
+    pop: F64, covered: NDArray[np.uint8], positions: list[tuple[float, float]]
+) -> tuple[list[float], int]:
+    """f_s of each individual given the fixed sensors' state; and the rays cast."""
+    run = _WORKER_RUN
+    assert run is not None
+    run.fixed.covered[:] = np.unpackbits(covered, count=len(run.fixed.covered)).astype(bool)
+    run.fixed.positions = list(positions)
+    before = run.sight_rays
+    fits = [run.evaluate(run.pose(*ind))[1].f_s for ind in pop]
+    return fits, run.sight_rays - before
 
 
 def _evaluator(settings: OptimizeSettings, grid: GroundGrid, caster: RayCaster):

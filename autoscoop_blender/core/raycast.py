@@ -150,3 +150,21 @@ class FloorCaster:
 
     def cast(self, origins: F64, dirs: F64, max_dist: ArrayLike) -> F64:
         return self.cast_normals(origins, dirs, max_dist)[0]
+
+
+def inside_solid(caster: RayCaster, points: F64, max_hits: int = 64) -> NDArray[np.bool_]:
+    """(K,) whether points (K, 3) lie inside closed geometry, or under an open surface
+    such as the terrain: an odd number of surfaces crossed going straight up."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 3).copy()
+    crossings = np.zeros(len(pts), dtype=int)
+    active = np.arange(len(pts))
+    up = np.array([0.0, 0.0, 1.0])
+    for _ in range(max_hits):
+        if len(active) == 0:
+            break
+        t = caster.cast(pts[active], np.tile(up, (len(active), 1)), 1e7)
+        hit = np.isfinite(t)
+        active = active[hit]
+        crossings[active] += 1
+        pts[active, 2] += t[hit] + 1e-3  # step just past the surface
+    return crossings % 2 == 1

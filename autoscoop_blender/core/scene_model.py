@@ -12,7 +12,7 @@ ring inside another is a hole, a ring inside that an island again.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import reduce
 
 import numpy as np
@@ -62,6 +62,25 @@ class SceneModel:
     origin: NDArray[np.float64] = field(default_factory=lambda: np.zeros(3))
     source: str = ""
     warnings: tuple[str, ...] = ()
+    # (F,) False for faces of overhangs (bridges, canopies): they occlude, but target
+    # points and masts are not dropped onto them. None: every face is ground.
+    ground_faces: NDArray[np.bool_] | None = None
+
+    def cropped(self, reach_m: float) -> SceneModel:
+        """The scene without occluders that no sight line can meet: faces farther than
+        ``reach_m`` (the longest sensor range) from every sensor area, and not over a
+        target (drops need the ground there)."""
+        if len(self.faces) == 0:
+            return self
+        region = shapely.union_all([self.sensor_union.buffer(reach_m), self.target_union])
+        tri = self.vertices[self.faces]
+        lo, hi = tri.min(axis=1), tri.max(axis=1)
+        boxes = shapely.box(lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1])
+        keep = shapely.intersects(region, boxes)
+        if keep.all():
+            return self
+        ground = None if self.ground_faces is None else self.ground_faces[keep]
+        return replace(self, faces=self.faces[keep], ground_faces=ground)
 
     @property
     def target_union(self) -> BaseGeometry:

@@ -98,7 +98,7 @@ def extract_scene(
     targets = tuple(_area(obj, rings, origin) for obj, rings in target_rings)
     sensors = tuple(_area(obj, rings, origin, with_height=True) for obj, rings in sensor_rings)
 
-    vertices, faces, occluders = occluder_mesh(depsgraph, results)
+    vertices, faces, occluders, ground = occluder_mesh(depsgraph, results)
     vertices = vertices - origin
     warnings: list[str] = []
     if not occluders:
@@ -115,6 +115,7 @@ def extract_scene(
         origin=origin,
         source=source,
         warnings=tuple(warnings),
+        ground_faces=None if ground.all() else ground,
     )
 
 
@@ -183,10 +184,12 @@ def _bezier_points(spline: bpy.types.Spline) -> F64:
 
 def occluder_mesh(
     depsgraph: bpy.types.Depsgraph, results: set[str]
-) -> tuple[F64, NDArray[np.int32], list[str]]:
-    """All occluding triangles in world metres: vertices (V, 3), faces (F, 3), names."""
+) -> tuple[F64, NDArray[np.int32], list[str], NDArray[np.bool_]]:
+    """All occluding triangles in world metres: vertices (V, 3), faces (F, 3), names,
+    and (F,) False for faces of overhangs (``names.OVERHANG_PROP``)."""
     verts: list[F64] = []
     faces: list[NDArray[np.int32]] = []
+    ground: list[NDArray[np.bool_]] = []
     used: list[str] = []
     offset = 0
     for inst in depsgraph.object_instances:
@@ -203,12 +206,18 @@ def occluder_mesh(
             continue
         verts.append(v)
         faces.append(f + offset)
+        ground.append(np.full(len(f), not orig.get(names.OVERHANG_PROP, False)))
         offset += len(v)
         if orig.name not in used:
             used.append(orig.name)
     if not faces:
-        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int32), []
-    return np.concatenate(verts), np.concatenate(faces).astype(np.int32), used
+        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int32), [], np.ones(0, dtype=bool)
+    return (
+        np.concatenate(verts),
+        np.concatenate(faces).astype(np.int32),
+        used,
+        np.concatenate(ground),
+    )
 
 
 def _triangles(eval_obj: bpy.types.Object, matrix: F64) -> tuple[F64, NDArray[np.int32]]:

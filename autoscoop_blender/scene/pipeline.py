@@ -125,7 +125,7 @@ class OptimizeJob:
         self.scene_name = context.scene.name
         self.model = model_from(props)
         self.settings = settings_from(props)
-        self.scene_model = extract_scene(context.scene)
+        self.scene_model = extract_scene(context.scene).cropped(self.model.range_m)
         caster = BVHCaster.from_scene(self.scene_model)
         self.run = OptimizationRun(self.scene_model, caster, self.model, self.settings)
         self.steps = self.run.steps()
@@ -245,10 +245,11 @@ def evaluate_cameras(context: bpy.types.Context) -> dict[str, Any]:
             "no sensor to evaluate: run Optimize, or mark cameras as sensors in the panel"
         )
     fallback = model_from(props)
-    scene_model = extract_scene(scene)
+    specs = [camera_spec(o, fallback) for o in cams]
+    scene_model = extract_scene(scene).cropped(max(s.model.range_m for s in specs))
     caster = BVHCaster.from_scene(scene_model)
     # The camera's own z (wherever the user moved it) sets its height over the ground.
-    specs = _with_heights([camera_spec(o, fallback) for o in cams], cams, scene_model, caster)
+    specs = _with_heights(specs, cams, scene_model, caster)
     settings = CoverageSettings(method=props.method, grid_m=props.grid_m)
     result = evaluate_sensors(scene_model, caster, specs, settings)
     placement = result.placement()

@@ -42,7 +42,7 @@ def _search(seed, target=(25.0, 5.0, 50.0, 120.0)):
         dyaw = (ind[3] - t[3] + 180) % 360 - 180
         return 100.0 * np.exp(-np.sum(((ind[:3] - t[:3]) / [5, 5, 10]) ** 2) - (dyaw / 60) ** 2)
 
-    search = SensorSearch(space, ESParams(), np.random.default_rng(seed), f)
+    search = SensorSearch(space, ESParams(), np.random.default_rng(seed), lambda pop: map(f, pop))
     for _ in search.steps():
         pass
     return search

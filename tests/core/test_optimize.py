@@ -119,3 +119,12 @@ def test_bad_settings():
     s = OptimizeSettings.from_mapping({"rho": 0.9, "es": {"mu": 8}}, "c.toml")
     assert s.rho == 0.9 and s.es.mu == 8 and s.es.lam == 20
     assert np.isfinite(s.fitness.band_m)
+
+
+def test_worker_processes_give_the_same_answer():
+    _, alone = run()
+    r, together = run(workers=2)
+    assert poses(together) == poses(alone)
+    assert together.metrics["coverage_fraction"] == alone.metrics["coverage_fraction"]
+    assert together.metrics["evaluations"] == alone.metrics["evaluations"]
+    assert r._pool is None  # the workers are gone at the end
