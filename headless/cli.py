@@ -76,12 +76,20 @@ def build_parser() -> argparse.ArgumentParser:
     smp.add_argument("--out-dir", default=str(SAMPLES))
 
     bench = sub.add_parser("bench", help="benchmarks that print figures")
-    bench.add_argument("what", choices=("coverage", "optimize"))
+    bench.add_argument(
+        "what",
+        nargs="?",
+        default="all",
+        choices=("all", "coverage", "optimize"),
+        help="all (default): speed/accuracy, optimizer runs, stability, scaling, "
+        "default vs paper -> bench/results.json and charts",
+    )
+    bench.add_argument("--quick", action="store_true", help="all: a few minutes")
     bench.add_argument("--scene", default=str(SAMPLES / "two_routes.blend"))
     bench.add_argument("--poses", type=int, default=12, help="coverage: poses per method")
     bench.add_argument("--seed", type=int, default=0)
     bench.add_argument("--out", help="coverage: also write the figures to this JSON file")
-    bench.add_argument("--out-dir", default="bench", help="optimize: figures and runs")
+    bench.add_argument("--out-dir", default="bench", help="where figures and runs go")
     bench.add_argument(
         "--paper-dir",
         default="bench/paper_pointcloud",
@@ -146,4 +154,8 @@ def _samples(args: argparse.Namespace) -> int:
 def _bench(args: argparse.Namespace) -> int:
     from headless import bench
 
+    if args.what == "all":
+        from headless import bench_suite
+
+        return bench_suite.run(args)
     return bench.coverage(args) if args.what == "coverage" else bench.optimize(args)

@@ -13,13 +13,11 @@ from typing import Any
 
 import numpy as np
 import shapely
-import shapely.affinity
 
 from .coverage import (
     METHODS,
     CoverageSummary,
     SensorCoverage,
-    footprint_polygon,
     make_evaluator,
     place,
     summarize,
@@ -27,7 +25,7 @@ from .coverage import (
 from .errors import InputError
 from .grid import GroundGrid
 from .masts import group_positions
-from .placement import MastRecord, Placement, SensorRecord
+from .placement import Placement, build_placement
 from .raycast import RayCaster, inside_solid
 from .scene_model import SceneModel
 from .sensor_file import SensorSpec
@@ -143,61 +141,9 @@ class CoverageResult:
     def placement(self, mast_join_m: float = 3.0) -> Placement:
         """The evaluated layout in world coordinates; sensors within ``mast_join_m``
         of each other are shown on one mast (they are not moved)."""
-        ox, oy = float(self.scene.origin[0]), float(self.scene.origin[1])
-        covs = self.coverages
-        xy = np.array([[c.pose.x, c.pose.y] for c in covs]).reshape(-1, 2)
+        xy = np.array([[c.pose.x, c.pose.y] for c in self.coverages]).reshape(-1, 2)
         labels = group_positions(xy, mast_join_m)
-        sensors = []
-        for k, (cov, label) in enumerate(zip(covs, labels), start=1):
-            p = cov.pose
-            wx, wy, wz = self.scene.to_world(np.array([p.x, p.y, p.z]))
-            sensors.append(
-                SensorRecord(
-                    n=k,
-                    x=float(wx),
-                    y=float(wy),
-                    z=float(wz),
-                    height_m=p.height_m,
-                    pitch_deg=p.pitch_deg,
-                    yaw_deg=p.yaw_deg,
-                    model=cov.model,
-                    mast=int(label),
-                    fitness=0.0,
-                    epochs=0,
-                    covered_target_m2=len(cov.covered) * self.grid.cell_area,
-                    footprint_m2=float(cov.footprint_m2 or 0.0),
-                    footprint=shapely.affinity.translate(footprint_polygon(self.grid, cov), ox, oy),
-                )
-            )
-        masts = []
-        for label in range(int(labels.max()) + 1 if len(labels) else 0):
-            members = [s for s in sensors if s.mast == label]
-            first = members[0]
-            masts.append(
-                MastRecord(
-                    n=label + 1,
-                    x=first.x,
-                    y=first.y,
-                    z_ground=first.z - first.height_m,
-                    height_m=max(s.height_m for s in members),
-                    sensors=tuple(s.n for s in members),
-                )
-            )
-        return Placement(
-            sensors=tuple(sensors),
-            masts=tuple(masts),
-            targets=tuple(
-                (a.name, shapely.affinity.translate(a.geometry, ox, oy)) for a in self.scene.targets
-            ),
-            sensor_areas=tuple(
-                (a.name, shapely.affinity.translate(a.geometry, ox, oy))
-                for a in self.scene.sensor_areas
-            ),
-            points=self.scene.to_world(self.grid.target_points),
-            n_visible=self.summary.n_visible,
-            n_covered=self.summary.n_covered,
-            cell_m=self.grid.spacing,
-        )
+        return build_placement(self.scene, self.grid, self.coverages, self.summary, labels)
 
     def point_rows(self) -> list[tuple[float, float, float, int, int, float]]:
         """One row per target point: world x, y, z, n_visible, n_covered, best_density."""

@@ -33,7 +33,6 @@ from .coverage import (
     PointcloudEvaluator,
     SensorCoverage,
     TargetedEvaluator,
-    footprint_polygon,
     place,
     summarize,
 )
@@ -42,7 +41,7 @@ from .es import ESParams, SearchSpace, SensorSearch
 from .fitness import FitnessParams, FixedSensors, fitness
 from .grid import GroundGrid
 from .masts import choose_sites, group_positions
-from .placement import MastRecord, Placement, SensorRecord
+from .placement import Placement, build_placement
 from .raycast import BoxCaster, RayCaster
 from .scene_model import Area, SceneModel
 from .sensors import SensorModel, SensorPose
@@ -200,45 +199,14 @@ class OptimizationResult:
 
     def placement(self) -> Placement:
         """The layout in world coordinates, for reports and the scene."""
-        ox, oy, oz = (float(v) for v in self.scene.origin)
-        recs = []
-        for k, (s, cov) in enumerate(zip(self.sensors, self.coverages), start=1):
-            p = s.pose
-            recs.append(
-                SensorRecord(
-                    n=k,
-                    x=p.x + ox,
-                    y=p.y + oy,
-                    z=p.z + oz,
-                    height_m=p.height_m,
-                    pitch_deg=p.pitch_deg,
-                    yaw_deg=p.yaw_deg,
-                    model=self.model,
-                    mast=s.mast,
-                    fitness=s.fitness,
-                    epochs=s.epochs,
-                    covered_target_m2=len(cov.covered) * self.grid.cell_area,
-                    footprint_m2=float(cov.footprint_m2 or 0.0),
-                    footprint=shapely.affinity.translate(footprint_polygon(self.grid, cov), ox, oy),
-                )
-            )
-        masts = tuple(
-            MastRecord(n=k, x=x + ox, y=y + oy, z_ground=zg + oz, height_m=h, sensors=members)
-            for k, (x, y, zg, h, members) in enumerate(self.masts, start=1)
-        )
-
-        def world(areas: tuple[Area, ...]) -> tuple[tuple[str, Any], ...]:
-            return tuple((a.name, shapely.affinity.translate(a.geometry, ox, oy)) for a in areas)
-
-        return Placement(
-            sensors=tuple(recs),
-            masts=masts,
-            targets=world(self.scene.targets),
-            sensor_areas=world(self.scene.sensor_areas),
-            points=self.scene.to_world(self.grid.target_points),
-            n_visible=self.summary.n_visible,
-            n_covered=self.summary.n_covered,
-            cell_m=self.grid.spacing,
+        return build_placement(
+            self.scene,
+            self.grid,
+            self.coverages,
+            self.summary,
+            [s.mast for s in self.sensors],
+            [s.fitness for s in self.sensors],
+            [s.epochs for s in self.sensors],
         )
 
 

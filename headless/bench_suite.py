@@ -1,0 +1,487 @@
+"""``python -m headless bench [--quick]``: speed against accuracy, optimizer runs,
+stability across seeds, scaling, and the default pipeline against the paper's.
+
+Writes ``bench/results.json``, ``bench/speed_accuracy.png`` and ``bench/optimize.png``.
+
+The reference for accuracy is ``targeted`` on a 0.25 m grid at the exact pose (no
+position lattice, no cropping); it is checked first against the analytic shadow of
+``flat_wall``'s wall. For every method and knob, each pose is scored by
+
+* point disagreement: the fraction of the reference's target points (0.25 m) whose
+  covered / not-covered verdict differs from the method's coverage map there (the
+  verdict of the method's grid cell holding the point, or, for ``pointcloud``, whether
+  the point lies in its alpha shape);
+* footprint error: |footprint m^2 - reference footprint m^2| / reference.
+
+Time is seconds per pose evaluation as the optimizer calls it (target points plus the
+fitness band; for the cached method, amortised over the orientations an ES tries at
+each position, measured by replaying that many).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import multiprocessing
+import os
+import platform
+import resource
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, replace
+from datetime import date
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import shapely
+
+from autoscoop_blender.core.cached import CachedTargetedEvaluator
+from autoscoop_blender.core.coverage import (
+    PointcloudEvaluator,
+    TargetedEvaluator,
+    auto_oversample,
+    footprint_polygon,
+    place,
+)
+from autoscoop_blender.core.fitness import FitnessParams
+from autoscoop_blender.core.grid import GroundGrid
+from autoscoop_blender.core.optimize import OptimizationRun, OptimizeSettings
+from autoscoop_blender.core.scene_model import SceneModel, random_points
+from autoscoop_blender.core.sensors import PAPER_CAMERA, SensorPose
+from headless.cli import SAMPLES
+from headless.files import json_text, load_scene
+
+REFERENCE_GRID_M = 0.25
+BAND_M = FitnessParams().band_m
+MODEL = PAPER_CAMERA
+
+
+@dataclass(frozen=True)
+class Plan:
+    """How much to measure: --quick keeps the whole suite to a few minutes."""
+
+    poses: int
+    pointcloud_oversample: tuple[int, ...]
+    alphas: tuple[float, ...]
+    grids: tuple[float, ...]
+    quantizations: tuple[float, ...]
+    orientations_per_position: int
+    seeds: int
+    scaling_tiles: tuple[int, ...]
+
+
+QUICK = Plan(4, (1, 2), (0.5, 1.0, 2.0), (2.0, 1.0, 0.5), (1.0, 2.0, 4.0), 32, 3, (1, 2, 3))
+FULL = Plan(12, (1, 2, 3), (0.5, 1.0, 2.0), (2.0, 1.0, 0.5), (1.0, 2.0, 4.0), 64, 10, (1, 3, 6, 12))
+
+
+def run(args: argparse.Namespace) -> int:
+    plan = QUICK if args.quick else FULL
+    out = Path(args.out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    results: dict[str, Any] = {
+        "date": date.today().isoformat(),
+        "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
+        "quick": bool(args.quick),
+        "reference": {
+            "method": "targeted",
+            "grid_m": REFERENCE_GRID_M,
+            "positions": "exact (no lattice), no cropping",
+            "analytic_check": reference_check(),
+        },
+        "defaults": derived_defaults(),
+    }
+    print(f"reference check: {results['reference']['analytic_check']}")
+    results["speed_accuracy"] = {
+        name: speed_accuracy(SAMPLES / f"{name}.blend", plan, seed=args.seed)
+        for name in ("two_routes", "full_ground")
+    }
+    runs = optimize_runs(plan, args.seed)
+    results["optimize"] = runs
+    results["stability"] = stability([r for r in runs if r["config"] == "default"])
+    results["scaling"] = scaling(plan, args.seed)
+    results["default_vs_paper"] = default_vs_paper(Path(args.paper_dir), args.seed)
+    (out / "results.json").write_text(json_text(results))
+
+    from headless.charts import optimize_chart, speed_accuracy_chart
+
+    speed_accuracy_chart(results, out / "speed_accuracy.png")
+    optimize_chart(results, out / "optimize.png")
+    print(f"wrote {out / 'results.json'}, {out / 'speed_accuracy.png'}, {out / 'optimize.png'}")
+    return 0
+
+
+def derived_defaults() -> dict[str, Any]:
+    """The knobs' defaults as derived for the paper camera on the 1 m grid."""
+    settings = OptimizeSettings()
+    return {
+        "method": settings.method,
+        "grid_m": settings.grid_m,
+        "position_step_m": settings.position_step_m or 2 * settings.grid_m,
+        "pointcloud_oversample": auto_oversample(MODEL, settings.grid_m),
+        "alpha": settings.alpha,
+        "crop_to_range_m": MODEL.range_m,
+        "fitness_band_m": round(BAND_M, 2),
+    }
+
+
+# --- reference -------------------------------------------------------------------
+
+
+def reference_check() -> dict[str, float]:
+    """The reference's hidden area behind flat_wall's wall against the analytic one."""
+    import bpy
+
+    from autoscoop_blender.scene.bvh import BVHCaster
+    from autoscoop_blender.scene.extract import extract_scene
+    from headless.files import open_blend
+    from headless.samples import FLAT_WALL_BOX
+
+    open_blend(str(SAMPLES / "flat_wall.blend"))
+    model = replace(MODEL, min_density_per_m2=0.0)
+    seen = []
+    for ignore in (False, True):
+        bpy.data.objects["Wall"]["autoscoop_ignore"] = ignore
+        scene = extract_scene()
+        caster = BVHCaster.from_scene(scene)
+        grid = GroundGrid(scene, caster, REFERENCE_GRID_M, reach_m=model.range_m)
+        pose = place(grid, -8.0, 0.0, 7.0, 40.0, 0.0)
+        seen.append(
+            len(TargetedEvaluator(grid, caster).evaluate(model, pose).covered) * grid.cell_area
+        )
+    x0, y0, z0, x1, y1, z1 = FLAT_WALL_BOX
+    s = np.array([-8.0, 0.0, 7.0])
+    corners = np.array([[x, y, z] for x in (x0, x1) for y in (y0, y1) for z in (z0, z1)])
+    proj = s[:2] + (corners[:, :2] - s[:2]) * (s[2] / (s[2] - corners[:, 2:3]))
+    analytic = shapely.MultiPoint(proj).convex_hull.area - (x1 - x0) * (y1 - y0)
+    measured = seen[1] - seen[0]
+    return {
+        "analytic_hidden_m2": round(analytic, 3),
+        "reference_hidden_m2": round(measured, 3),
+        "relative_error": round(abs(measured - analytic) / analytic, 5),
+    }
+
+
+def _poses(
+    scene: SceneModel, grid: GroundGrid, n: int, rng: np.random.Generator
+) -> list[SensorPose]:
+    """Poses spread over the sensor areas, each looking towards nearby target points
+    (an optimizer's candidates look at roads, not away from them)."""
+    poses = []
+    target_xy = grid.target_xy
+    areas = scene.sensor_areas
+    while len(poses) < n:
+        area = areas[len(poses) % len(areas)]
+        ((x, y),) = random_points(area.geometry, 1, rng)
+        near = target_xy[np.hypot(*(target_xy - (x, y)).T) < 40.0]
+        if len(near) == 0:
+            continue
+        cx, cy = near.mean(axis=0)
+        yaw = math.degrees(math.atan2(cy - y, cx - x)) + rng.normal(0, 20.0)
+        pitch = rng.uniform(MODEL.pitch_min_deg, 45.0)
+        poses.append(SensorPose(float(x), float(y), 0.0, MODEL.mount_height_m, pitch, yaw % 360))
+    return poses
+
+
+def _at(
+    grid: GroundGrid, pose: SensorPose, x: float | None = None, y: float | None = None
+) -> SensorPose:
+    x = pose.x if x is None else x
+    y = pose.y if y is None else y
+    return place(grid, x, y, pose.height_m, pose.pitch_deg, pose.yaw_deg)
+
+
+# --- speed against accuracy ------------------------------------------------------------
+
+
+def speed_accuracy(path: Path, plan: Plan, seed: int) -> list[dict[str, Any]]:
+    """One row per (series, knob value): seconds per pose and both errors (mean)."""
+    from autoscoop_blender.scene.bvh import BVHCaster
+
+    print(f"speed/accuracy on {path.name} ({plan.poses} poses)")
+    full_scene, full_caster = load_scene(str(path))
+    scene = full_scene.cropped(MODEL.range_m)
+    caster = BVHCaster.from_scene(scene)
+    ref_grid = GroundGrid(full_scene, full_caster, REFERENCE_GRID_M, reach_m=MODEL.range_m)
+    rng = np.random.default_rng(seed)
+    poses = _poses(scene, ref_grid, plan.poses, rng)
+    reference = []
+    for pose in poses:
+        cov = TargetedEvaluator(ref_grid, full_caster).evaluate(
+            MODEL, _at(ref_grid, pose), outside_band_m=math.inf
+        )
+        mask = np.zeros(ref_grid.n_targets, dtype=bool)
+        mask[cov.covered] = True
+        reference.append((mask, cov.footprint_m2))
+
+    rows: list[dict[str, Any]] = []
+    grids = {g: GroundGrid(scene, caster, g, reach_m=MODEL.range_m) for g in plan.grids}
+    defaults = derived_defaults()
+
+    def score(series, knob, value, grid, evaluate, timing, default=False, note=""):
+        dis, fp = [], []
+        for pose, (ref_mask, ref_fp) in zip(poses, reference):
+            verdict, footprint = evaluate(pose)
+            dis.append(float((verdict != ref_mask).mean()))
+            fp.append(abs(footprint - ref_fp) / max(ref_fp, 1e-9))
+        row = {
+            "series": series,
+            "knob": knob,
+            "value": value,
+            "s_per_pose": timing,
+            "point_disagreement": float(np.mean(dis)),
+            "footprint_error": float(np.mean(fp)),
+            "default": default,
+        }
+        if note:
+            row["note"] = note
+        rows.append(row)
+        print(
+            f"  {series:<18}{knob}={value!s:<6}{timing * 1e3:9.2f} ms/pose  "
+            f"disagree {row['point_disagreement']:.3%}  footprint {row['footprint_error']:.2%}"
+        )
+
+    # targeted at several grid spacings (direct: a ray per point that can count)
+    for g, grid in grids.items():
+        ev = TargetedEvaluator(grid, caster)
+        timing = _time(lambda p, ev=ev, grid=grid: ev.evaluate(MODEL, _at(grid, p), BAND_M), poses)
+
+        def verdicts(pose, ev=ev, grid=grid):
+            cov = ev.evaluate(MODEL, _at(grid, pose), outside_band_m=math.inf)
+            return _cell_verdicts(grid, cov.covered, ref_grid), cov.footprint_m2
+
+        score("targeted", "grid_m", g, grid, verdicts, timing, default=False)
+
+    # cached targeted at several position lattices (grid 1 m)
+    grid = grids[1.0]
+    for q in plan.quantizations:
+        timing = _time_cached(grid, caster, poses, q, plan.orientations_per_position, rng)
+
+        def snapped(pose, q=q):
+            x, y = round(pose.x / q) * q, round(pose.y / q) * q
+            cov = TargetedEvaluator(grid, caster).evaluate(
+                MODEL, _at(grid, pose, x, y), outside_band_m=math.inf
+            )
+            return _cell_verdicts(grid, cov.covered, ref_grid), cov.footprint_m2
+
+        score(
+            "cached targeted", "position_step_m", q, grid, snapped, timing,
+            default=q == defaults["position_step_m"],
+        )  # fmt: skip
+
+    # pointcloud at several ray counts and alpha values (grid 1 m)
+    for os_ in plan.pointcloud_oversample:
+        for alpha in plan.alphas if os_ == 1 else (1.0,):
+            ev = PointcloudEvaluator(grid, caster, oversample=os_, alpha=alpha)
+            n = 2 if os_ > 1 else len(poses)  # oversampled patterns are slow: time a few
+            timing = _time(lambda p, ev=ev: ev.evaluate(MODEL, _at(grid, p), BAND_M), poses[:n])
+
+            def inside(pose, ev=ev):
+                cov = ev.evaluate(MODEL, _at(grid, pose), outside_band_m=math.inf)
+                poly = footprint_polygon(grid, cov)
+                xy = ref_grid.target_xy
+                return shapely.contains_xy(poly, xy[:, 0], xy[:, 1]), cov.footprint_m2
+
+            knob = "oversample" if alpha == 1.0 else "alpha"
+            value = os_ if alpha == 1.0 else alpha
+            score(
+                "pointcloud", knob, value, grid, inside, timing,
+                default=(os_ == defaults["pointcloud_oversample"] and alpha == 1.0),
+            )  # fmt: skip
+
+    # cropping the occluders to the sensors' reach, on and off (targeted, 1 m)
+    uncropped_grid = GroundGrid(full_scene, full_caster, 1.0, reach_m=MODEL.range_m)
+    for crop, (g, c) in (("off", (uncropped_grid, full_caster)), ("on", (grid, caster))):
+        ev = TargetedEvaluator(g, c)
+        timing = _time(lambda p, ev=ev, g=g: ev.evaluate(MODEL, _at(g, p), BAND_M), poses)
+
+        def verdicts(pose, ev=ev, g=g):
+            cov = ev.evaluate(MODEL, _at(g, pose), outside_band_m=math.inf)
+            return _cell_verdicts(g, cov.covered, ref_grid), cov.footprint_m2
+
+        note = f"{len(full_scene.faces) if crop == 'off' else len(scene.faces)} triangles"
+        score("cropping", "crop", crop, g, verdicts, timing, default=crop == "on", note=note)
+    return rows
+
+
+def _cell_verdicts(grid: GroundGrid, covered: np.ndarray, ref: GroundGrid) -> np.ndarray:
+    """(R,) the method's verdict at each reference point: its grid cell's."""
+    xy = ref.target_xy
+    i = np.floor((xy[:, 0] - grid.x0) / grid.spacing).astype(np.int64)
+    j = np.floor((xy[:, 1] - grid.y0) / grid.spacing).astype(np.int64)
+    ordinal = grid.target_ordinal(i * grid.ny + j)
+    mask = np.zeros(grid.n_targets, dtype=bool)
+    mask[covered] = True
+    return (ordinal >= 0) & mask[np.maximum(ordinal, 0)]
+
+
+def _time(evaluate, poses: list[SensorPose]) -> float:
+    evaluate(poses[0])  # warm up lazily dropped cells and caches
+    t0 = time.perf_counter()
+    for pose in poses:
+        evaluate(pose)
+    return (time.perf_counter() - t0) / len(poses)
+
+
+def _time_cached(grid, caster, poses, q, per_position, rng) -> float:
+    """Seconds per evaluation when each lattice position is tried ``per_position``
+    times with different orientations, as the ES does (fresh cache)."""
+    ev = CachedTargetedEvaluator(grid, caster)
+    t0 = time.perf_counter()
+    count = 0
+    for pose in poses:
+        x, y = round(pose.x / q) * q, round(pose.y / q) * q
+        for _ in range(per_position):
+            pitch = float(np.clip(pose.pitch_deg + rng.normal(0, 5), 31.0, 70.0))
+            p = place(grid, x, y, pose.height_m, pitch, (pose.yaw_deg + rng.normal(0, 30)) % 360)
+            ev.evaluate(MODEL, p, BAND_M)
+            count += 1
+    return (time.perf_counter() - t0) / count
+
+
+# --- optimizer runs, stability, scaling ---------------------------------------------------
+
+CONFIGS = {
+    "default": OptimizeSettings(),
+    "position_step_1m": OptimizeSettings(position_step_m=1.0),
+    "position_step_4m": OptimizeSettings(position_step_m=4.0),
+}
+
+
+def optimize_runs(plan: Plan, seed: int) -> list[dict[str, Any]]:
+    """Whole optimizations on two_routes: the default over ``plan.seeds`` seeds, the
+    other configurations over three."""
+    scene, caster = load_scene(str(SAMPLES / "two_routes.blend"), MODEL.range_m)
+    rows = []
+    for name, settings in CONFIGS.items():
+        seeds = range(seed, seed + (plan.seeds if name == "default" else min(3, plan.seeds)))
+        for s in seeds:
+            res = OptimizationRun(scene, caster, MODEL, replace(settings, seed=s)).result()
+            m = res.metrics
+            rows.append(
+                {
+                    "config": name,
+                    "seed": s,
+                    "wall_s": m["wall_s"],
+                    "sensors": m["sensors"],
+                    "masts": m["masts"],
+                    "coverage_fraction": m["coverage_fraction"],
+                    "rays_cast": m["rays_cast"],
+                }
+            )
+            print(
+                f"  optimize {name:<18} seed {s}: {m['sensors']} sensors, {m['masts']} masts, "
+                f"{m['coverage_fraction']:.2%}, {m['wall_s']:.1f} s"
+            )
+    return rows
+
+
+def stability(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """Spread of the default optimization's answer over seeds."""
+    out: dict[str, Any] = {"seeds": [r["seed"] for r in rows]}
+    for key in ("sensors", "masts", "coverage_fraction", "wall_s"):
+        v = np.array([r[key] for r in rows], dtype=float)
+        out[key] = {
+            "min": float(v.min()),
+            "max": float(v.max()),
+            "mean": round(float(v.mean()), 4),
+            "std": round(float(v.std()), 4),
+        }
+    return out
+
+
+def scaling(plan: Plan, seed: int) -> dict[str, Any]:
+    """The default optimization on growing parts of full_ground (k of its 12 tiles), each
+    in a fresh process so that its peak memory is its own."""
+    ctx = multiprocessing.get_context("spawn")
+    points = []
+    for k in plan.scaling_tiles:
+        with ProcessPoolExecutor(1, mp_context=ctx) as pool:
+            row = pool.submit(_scaling_point, k, seed).result()
+        points.append(row)
+        print(
+            f"  scaling {k:>2} tiles: {row['target_m2']:.0f} m^2, {row['wall_s']:.1f} s, "
+            f"{row['peak_rss_mb']:.0f} MB"
+        )
+    base = points[0]
+    for p in points:
+        p["s_per_m2_relative"] = round(
+            (p["wall_s"] / p["target_m2"]) / (base["wall_s"] / base["target_m2"]), 3
+        )
+    return {
+        "points": points,
+        "time_per_area_ratio_largest_vs_smallest": points[-1]["s_per_m2_relative"],
+        "linear_or_better": all(p["s_per_m2_relative"] <= 1.1 for p in points),
+    }
+
+
+def _scaling_point(tiles: int, seed: int) -> dict[str, Any]:
+    from autoscoop_blender.scene.rebuild import forget_blender_script_paths
+
+    forget_blender_script_paths()  # a spawned child: the pip bpy must win
+    from autoscoop_blender.scene.bvh import BVHCaster
+
+    scene, _ = load_scene(str(SAMPLES / "full_ground.blend"))
+    keep = {f"_T{t:02d}_" for t in range(1, tiles + 1)}
+    part = replace(
+        scene,
+        targets=tuple(a for a in scene.targets if any(k in a.name for k in keep)),
+        sensor_areas=tuple(a for a in scene.sensor_areas if any(k in a.name for k in keep)),
+    ).cropped(MODEL.range_m)
+    caster = BVHCaster.from_scene(part)
+    res = OptimizationRun(part, caster, MODEL, OptimizeSettings(seed=seed)).result()
+    m = res.metrics
+    return {
+        "tiles": tiles,
+        "target_m2": m["target_area_m2"],
+        "sensors": m["sensors"],
+        "coverage_fraction": m["coverage_fraction"],
+        "wall_s": m["wall_s"],
+        "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
+    }
+
+
+# --- the default pipeline against the paper's -------------------------------------------
+
+
+def default_vs_paper(paper_dir: Path, seed: int) -> dict[str, Any]:
+    """Speed-up of the default optimization over the paper-faithful one on two_routes,
+    and how often the default's coverage verdicts differ from the reference's for the
+    layout it found."""
+    scene, caster = load_scene(str(SAMPLES / "two_routes.blend"), MODEL.range_m)
+    res = OptimizationRun(scene, caster, MODEL, OptimizeSettings(seed=seed)).result()
+    full_scene, full_caster = load_scene(str(SAMPLES / "two_routes.blend"))
+    ref_grid = GroundGrid(full_scene, full_caster, REFERENCE_GRID_M, reach_m=MODEL.range_m)
+    ref_ev = TargetedEvaluator(ref_grid, full_caster)
+    ref_mask = np.zeros(ref_grid.n_targets, dtype=bool)
+    for s in res.sensors:
+        p = s.pose
+        cov = ref_ev.evaluate(MODEL, place(ref_grid, p.x, p.y, p.height_m, p.pitch_deg, p.yaw_deg))
+        ref_mask[cov.covered] = True
+    claimed = np.flatnonzero(res.summary.n_covered > 0)
+    mine = _cell_verdicts(res.grid, claimed, ref_grid)
+    out: dict[str, Any] = {
+        "default_wall_s": res.metrics["wall_s"],
+        "default_sensors": res.metrics["sensors"],
+        "default_coverage": res.metrics["coverage_fraction"],
+        "reference_coverage_of_default_layout": round(float(ref_mask.mean()), 6),
+        "point_disagreement": round(float((mine != ref_mask).mean()), 6),
+    }
+    paper = paper_dir / "result.json"
+    if paper.is_file():
+        m = json.loads(paper.read_text())["metrics"]
+        out.update(
+            paper_wall_s=m["wall_s"],
+            paper_sensors=m["sensors"],
+            paper_coverage=m["coverage_fraction"],
+            paper_source=str(paper),
+            speedup=round(m["wall_s"] / res.metrics["wall_s"], 1),
+        )
+    else:
+        out["speedup"] = None
+        out["paper_source"] = (
+            f"missing: run `python -m headless optimize --method pointcloud --out-dir {paper_dir}`"
+        )
+    print(f"  default vs paper: {out}")
+    return out

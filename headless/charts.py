@@ -1,0 +1,104 @@
+"""The benchmark's charts (matplotlib, headless; a development tool, not the extension)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+SERIES_STYLE = {
+    "targeted": ("tab:blue", "o"),
+    "cached targeted": ("tab:green", "s"),
+    "pointcloud": ("tab:red", "^"),
+    "cropping": ("tab:purple", "D"),
+}
+
+
+def speed_accuracy_chart(results: dict[str, Any], path: Path) -> None:
+    """Seconds per pose (log) against point disagreement and footprint error, one
+    column per scene, one series per method and knob; defaults starred."""
+    scenes = list(results["speed_accuracy"])
+    fig, axes = plt.subplots(2, len(scenes), figsize=(6.5 * len(scenes), 9), squeeze=False)
+    for col, scene in enumerate(scenes):
+        rows = results["speed_accuracy"][scene]
+        for row_i, (metric, label) in enumerate(
+            (("point_disagreement", "target points disagreeing with reference"),
+             ("footprint_error", "footprint area error"))
+        ):  # fmt: skip
+            ax = axes[row_i][col]
+            for (series, knob), group in _groups(rows).items():
+                color, marker = SERIES_STYLE.get(series, ("gray", "x"))
+                xs = [r["s_per_pose"] for r in group]
+                ys = [100 * r[metric] for r in group]
+                ax.plot(xs, ys, marker=marker, color=color, linestyle="-" if len(group) > 1 else "",
+                        label=f"{series} ({knob})", alpha=0.85)  # fmt: skip
+                for r, x, y in zip(group, xs, ys):
+                    ax.annotate(f"{r['value']}", (x, y), textcoords="offset points",
+                                xytext=(4, 4), fontsize=7)  # fmt: skip
+                    if r["default"]:
+                        ax.plot([x], [y], marker="*", markersize=16, color="gold",
+                                markeredgecolor="black", linestyle="")  # fmt: skip
+            ax.set_xscale("log")
+            ax.set_xlabel("seconds per pose evaluation (log)")
+            ax.set_ylabel(f"{label} (%)")
+            ax.set_title(f"{scene}: {label}")
+            ax.grid(True, which="both", alpha=0.3)
+            if row_i == 0 and col == 0:
+                ax.legend(fontsize=7, loc="upper right")
+    ref = results["reference"]
+    fig.suptitle(
+        f"Speed against accuracy (reference: {ref['method']} on a {ref['grid_m']} m grid, "
+        f"{ref['positions']}); gold star = default. {results['date']}, {results['machine']}",
+        fontsize=9,
+    )
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _groups(rows: list[dict[str, Any]]) -> dict[tuple[str, str], list[dict[str, Any]]]:
+    out: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for r in rows:
+        out.setdefault((r["series"], r["knob"]), []).append(r)
+    return out
+
+
+def optimize_chart(results: dict[str, Any], path: Path) -> None:
+    """Wall seconds against sensors needed, per optimizer configuration over seeds
+    (each seed a dot, the spread as a cross of min-max bars)."""
+    fig, ax = plt.subplots(figsize=(8, 5.5))
+    configs: dict[str, list[dict[str, Any]]] = {}
+    for r in results["optimize"]:
+        configs.setdefault(r["config"], []).append(r)
+    paper = results.get("default_vs_paper", {})
+    if paper.get("paper_wall_s"):
+        configs["paper-faithful (pointcloud)"] = [
+            {"wall_s": paper["paper_wall_s"], "sensors": paper["paper_sensors"],
+             "coverage_fraction": paper["paper_coverage"]}
+        ]  # fmt: skip
+    for i, (name, rows) in enumerate(configs.items()):
+        xs = [r["wall_s"] for r in rows]
+        ys = [r["sensors"] for r in rows]
+        color = f"C{i}"
+        ax.scatter(xs, ys, color=color, alpha=0.6, label=f"{name} ({len(rows)} seed(s))")
+        if len(rows) > 1:
+            mx, my = sum(xs) / len(xs), sum(ys) / len(ys)
+            ax.errorbar([mx], [my], xerr=[[mx - min(xs)], [max(xs) - mx]],
+                        yerr=[[my - min(ys)], [max(ys) - my]], color=color, capsize=4)  # fmt: skip
+        cov = min(r["coverage_fraction"] for r in rows)
+        ax.annotate(f"cov >= {cov:.1%}", (max(xs), max(ys)), textcoords="offset points",
+                    xytext=(5, 2), fontsize=7, color=color)  # fmt: skip
+    ax.set_xscale("log")
+    ax.set_xlabel("wall seconds for the whole optimization (log)")
+    ax.set_ylabel("sensors needed for 97 %")
+    ax.set_title(f"Optimizer configurations on two_routes ({results['date']}, {results['machine']})",
+                 fontsize=9)  # fmt: skip
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
