@@ -36,6 +36,7 @@ from typing import Any
 
 import numpy as np
 import shapely
+from scipy.spatial import cKDTree
 
 from autoscoop_blender.core.cached import CachedTargetedEvaluator
 from autoscoop_blender.core.coverage import (
@@ -306,14 +307,19 @@ def speed_accuracy(path: Path, plan: Plan, seed: int) -> list[dict[str, Any]]:
 
 
 def _cell_verdicts(grid: GroundGrid, covered: np.ndarray, ref: GroundGrid) -> np.ndarray:
-    """(R,) the method's verdict at each reference point: its grid cell's."""
+    """(R,) the method's verdict at each reference point: that of the method's target
+    point nearest to it (its own cell's, or, along the target's edge where that cell's
+    centre falls outside the target, the neighbouring one's)."""
+    mask = np.zeros(grid.n_targets, dtype=bool)
+    mask[covered] = True
     xy = ref.target_xy
     i = np.floor((xy[:, 0] - grid.x0) / grid.spacing).astype(np.int64)
     j = np.floor((xy[:, 1] - grid.y0) / grid.spacing).astype(np.int64)
-    ordinal = grid.target_ordinal(i * grid.ny + j)
-    mask = np.zeros(grid.n_targets, dtype=bool)
-    mask[covered] = True
-    return (ordinal >= 0) & mask[np.maximum(ordinal, 0)]
+    ordinal = grid.target_ordinal(i * grid.ny + j).astype(np.int64)
+    edge = ordinal < 0
+    if edge.any():
+        _, ordinal[edge] = cKDTree(grid.target_xy).query(xy[edge])
+    return mask[ordinal]
 
 
 def _time(evaluate, poses: list[SensorPose]) -> float:
