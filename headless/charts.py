@@ -35,13 +35,16 @@ def speed_accuracy_chart(results: dict[str, Any], path: Path) -> None:
                 xs = [r["s_per_pose"] for r in group]
                 ys = [100 * r[metric] for r in group]
                 ax.plot(xs, ys, marker=marker, color=color, linestyle="-" if len(group) > 1 else "",
-                        label=f"{series} ({knob})", alpha=0.85)  # fmt: skip
+                        label=f"{series} ({knob})", alpha=0.85, zorder=2)  # fmt: skip
                 for r, x, y in zip(group, xs, ys):
                     ax.annotate(f"{r['value']}", (x, y), textcoords="offset points",
                                 xytext=(4, 4), fontsize=7)  # fmt: skip
                     if r["default"]:
-                        ax.plot([x], [y], marker="*", markersize=16, color="gold",
-                                markeredgecolor="black", linestyle="")  # fmt: skip
+                        ax.plot([x], [y], marker="*", markersize=15, color="gold",
+                                markeredgecolor="black", linestyle="", zorder=1)  # fmt: skip
+                    if r.get("note") == "paper":
+                        ax.plot([x], [y], marker="o", markersize=14, fillstyle="none",
+                                color="black", linestyle="", zorder=1)  # fmt: skip
             ax.set_xscale("log")
             ax.set_xlabel("seconds per pose evaluation (log)")
             ax.set_ylabel(f"{label} (%)")
@@ -52,7 +55,8 @@ def speed_accuracy_chart(results: dict[str, Any], path: Path) -> None:
     ref = results["reference"]
     fig.suptitle(
         f"Speed against accuracy (reference: {ref['method']} on a {ref['grid_m']} m grid, "
-        f"{ref['positions']}); gold star = default. {results['date']}, {results['machine']}",
+        f"{ref['positions']}); gold star: default, black ring: the paper's pipeline. "
+        f"{results['date']}, {results['machine']}",
         fontsize=9,
     )
     fig.tight_layout()
