@@ -7,11 +7,8 @@ one run, since shared machines are noisy.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
-import subprocess
-import sys
 import time
 from datetime import date
 from pathlib import Path
@@ -74,7 +71,7 @@ def coverage(args: argparse.Namespace) -> int:
     ratio = per_method["pointcloud"]["s_per_pose_mean"] / per_method["targeted"]["s_per_pose_mean"]
     figures = {
         "date": date.today().isoformat(),
-        "machine": _machine(),
+        "machine": machine_line(),
         "scene": Path(args.scene).name,
         "triangles": int(len(scene.faces)),
         "target_points": grid.n_targets,
@@ -104,58 +101,21 @@ def coverage(args: argparse.Namespace) -> int:
 
 
 def optimize(args: argparse.Namespace) -> int:
-    """Default pipeline against the paper-faithful one on the same scene.
+    """The default optimization against the paper-faithful one on two_routes (wall s,
+    rays, sensors, masts, coverage), into ``bench/optimize.json``; the paper-faithful
+    run is read from ``--paper-dir`` (``headless optimize --method pointcloud``)."""
+    from headless.bench_suite import default_vs_paper
 
-    The default (ES, cached targeted coverage) runs here. The paper-faithful run
-    (ES, pointcloud coverage, Table I rays) takes hours on two cores, so it runs
-    through ``headless optimize --method pointcloud --out-dir PAPER_DIR`` with its
-    checkpoint (resumable, wall time carried over); this reads its result.json, or
-    starts/resumes that run when it is missing.
-    """
     out_dir = Path(args.out_dir)
-    default_dir = out_dir / "default_targeted"
-    paper_dir = Path(args.paper_dir)
-    runs = {}
-    for name, method, where in (
-        ("default", "targeted", default_dir),
-        ("paper_faithful", "pointcloud", paper_dir),
-    ):
-        result = where / "result.json"
-        if name == "paper_faithful" and result.is_file():
-            print(f"{name}: reusing {result}")
-        else:
-            resume = name == "paper_faithful" and (where / "checkpoint.jsonl").is_file()
-            cmd = [sys.executable, "-m", "headless", "optimize", args.scene, "--method", method]
-            cmd += ["--out-dir", str(where), "--seed", str(args.seed)]
-            cmd += ["--resume"] if resume else []
-            print(f"{name}: {' '.join(cmd[1:])}")
-            subprocess.run(cmd, check=True)
-        res = json.loads(result.read_text())
-        runs[name] = {k: res["metrics"][k] for k in OPTIMIZE_FIGURES} | {"method": method}
-    d, p = runs["default"], runs["paper_faithful"]
     figures = {
         "date": date.today().isoformat(),
-        "machine": _machine(),
-        "scene": Path(args.scene).name,
-        "seed": args.seed,
-        "runs": runs,
-        "speedup": round(p["wall_s"] / d["wall_s"], 1),
-        "ray_ratio": round(p["rays_cast"] / d["rays_cast"], 1),
+        "machine": machine_line(),
+        **default_vs_paper(Path(args.paper_dir), args.seed, out_dir),
     }
-    print(f"{'':<16}{'wall s':>10}{'rays':>14}{'sensors':>9}{'masts':>7}{'coverage':>10}")
-    for name, r in runs.items():
-        print(
-            f"{name:<16}{r['wall_s']:>10.1f}{r['rays_cast']:>14,}{r['sensors']:>9}"
-            f"{r['masts']:>7}{r['coverage_fraction']:>10.2%}"
-        )
-    print(f"speedup {figures['speedup']}x, {figures['ray_ratio']}x fewer rays")
     out_dir.mkdir(parents=True, exist_ok=True)
     (out_dir / "optimize.json").write_text(json_text(figures))
     return 0
 
 
-OPTIMIZE_FIGURES = ("wall_s", "rays_cast", "sensors", "masts", "coverage_fraction", "evaluations")
-
-
-def _machine() -> str:
+def machine_line() -> str:
     return f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}"

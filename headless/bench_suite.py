@@ -25,8 +25,6 @@ import argparse
 import json
 import math
 import multiprocessing
-import os
-import platform
 import resource
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -52,6 +50,7 @@ from autoscoop_blender.core.grid import GroundGrid
 from autoscoop_blender.core.optimize import OptimizationRun, OptimizeSettings
 from autoscoop_blender.core.scene_model import SceneModel, random_points
 from autoscoop_blender.core.sensors import PAPER_CAMERA, SensorPose
+from headless.bench import machine_line
 from headless.cli import SAMPLES
 from headless.files import json_text, load_scene
 
@@ -85,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     results: dict[str, Any] = {
         "date": date.today().isoformat(),
-        "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
+        "machine": machine_line(),
         "quick": bool(args.quick),
         "reference": {
             "method": "targeted",
@@ -104,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
     results["optimize"] = runs
     results["stability"] = stability([r for r in runs if r["config"] == "default"])
     results["scaling"] = scaling(plan, args.seed)
-    results["default_vs_paper"] = default_vs_paper(Path(args.paper_dir), args.seed)
+    results["default_vs_paper"] = default_vs_paper(Path(args.paper_dir), args.seed, out)
     (out / "results.json").write_text(json_text(results))
 
     from headless.charts import optimize_chart, speed_accuracy_chart
@@ -460,38 +459,61 @@ def _peak_rss_mb() -> float:
 # --- the default pipeline against the paper's -------------------------------------------
 
 
-def default_vs_paper(paper_dir: Path, seed: int) -> dict[str, Any]:
-    """Speed-up of the default optimization over the paper-faithful one on two_routes,
-    and how often the default's coverage verdicts differ from the reference's for the
-    layout it found."""
+def default_vs_paper(paper_dir: Path, seed: int, out_dir: Path) -> dict[str, Any]:
+    """Speed-up of the default optimization (``headless optimize`` as a user runs it)
+    over the paper-faithful one on two_routes, and how often the default's coverage
+    verdicts for the layout it found differ from the reference's."""
+    import subprocess
+    import sys
+
+    from autoscoop_blender.core.analysis import CoverageSettings, evaluate_sensors
+    from autoscoop_blender.core.sensor_file import parse_sensors
+
+    where = out_dir / "default_targeted"
+    cmd = [
+        sys.executable,
+        "-m",
+        "headless",
+        "optimize",
+        "--out-dir",
+        str(where),
+        "--seed",
+        str(seed),
+    ]
+    subprocess.run(cmd, check=True, capture_output=True)
+    doc = json.loads((where / "result.json").read_text())
+    specs = parse_sensors(doc, "result.json")
     scene, caster = load_scene(str(SAMPLES / "two_routes.blend"), MODEL.range_m)
-    res = OptimizationRun(scene, caster, MODEL, OptimizeSettings(seed=seed)).result()
+    claimed = evaluate_sensors(scene, caster, specs, CoverageSettings())
     full_scene, full_caster = load_scene(str(SAMPLES / "two_routes.blend"))
-    ref_grid = GroundGrid(full_scene, full_caster, REFERENCE_GRID_M, reach_m=MODEL.range_m)
-    ref_ev = TargetedEvaluator(ref_grid, full_caster)
-    ref_mask = np.zeros(ref_grid.n_targets, dtype=bool)
-    for s in res.sensors:
-        p = s.pose
-        cov = ref_ev.evaluate(MODEL, place(ref_grid, p.x, p.y, p.height_m, p.pitch_deg, p.yaw_deg))
-        ref_mask[cov.covered] = True
-    claimed = np.flatnonzero(res.summary.n_covered > 0)
-    mine = _cell_verdicts(res.grid, claimed, ref_grid)
+    reference = evaluate_sensors(
+        full_scene, full_caster, specs, CoverageSettings(grid_m=REFERENCE_GRID_M)
+    )
+    ref_mask = reference.summary.n_covered > 0
+    mine = _cell_verdicts(
+        claimed.grid, np.flatnonzero(claimed.summary.n_covered > 0), reference.grid
+    )
+    m = doc["metrics"]
     out: dict[str, Any] = {
-        "default_wall_s": res.metrics["wall_s"],
-        "default_sensors": res.metrics["sensors"],
-        "default_coverage": res.metrics["coverage_fraction"],
+        "default_wall_s": m["wall_s"],
+        "default_sensors": m["sensors"],
+        "default_masts": m["masts"],
+        "default_coverage": m["coverage_fraction"],
+        "default_rays_cast": m["rays_cast"],
         "reference_coverage_of_default_layout": round(float(ref_mask.mean()), 6),
         "point_disagreement": round(float((mine != ref_mask).mean()), 6),
     }
     paper = paper_dir / "result.json"
     if paper.is_file():
-        m = json.loads(paper.read_text())["metrics"]
+        p = json.loads(paper.read_text())["metrics"]
         out.update(
-            paper_wall_s=m["wall_s"],
-            paper_sensors=m["sensors"],
-            paper_coverage=m["coverage_fraction"],
+            paper_wall_s=p["wall_s"],
+            paper_sensors=p["sensors"],
+            paper_masts=p["masts"],
+            paper_coverage=p["coverage_fraction"],
+            paper_rays_cast=p["rays_cast"],
             paper_source=str(paper),
-            speedup=round(m["wall_s"] / res.metrics["wall_s"], 1),
+            speedup=round(p["wall_s"] / m["wall_s"], 1),
         )
     else:
         out["speedup"] = None
