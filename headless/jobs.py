@@ -80,7 +80,7 @@ def optimize(args: argparse.Namespace) -> int:
     resume = checkpoint.resume() if args.resume else []
     if not args.resume:
         checkpoint.start()
-    workers = (os.cpu_count() or 1) if args.workers is None else args.workers
+    workers = default_workers() if args.workers is None else args.workers
     if workers < 1:
         raise InputError(f"--workers {workers}: must be at least 1")
     run = OptimizationRun(
@@ -110,6 +110,14 @@ def optimize(args: argparse.Namespace) -> int:
         f"in {m['wall_s']:.1f} s ({result.stop_reason}) -> {out_dir}"
     )
     return 0
+
+
+def default_workers() -> int:
+    """One worker process per core, but none inside a Blender binary: its bundled
+    Python, which worker processes would start, cannot import bpy."""
+    import bpy
+
+    return 1 if bpy.app.binary_path else (os.cpu_count() or 1)
 
 
 def default_scene() -> str | None:
