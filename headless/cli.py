@@ -62,7 +62,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--workers",
         type=int,
         default=None,
-        help="processes that evaluate in parallel (default: one per core; same answer)",
+        help="processes that evaluate in parallel (default: one per core, one inside a Blender binary; same answer)",
     )
 
     bld = sub.add_parser("build", help="build the extension zips (one per platform)")
