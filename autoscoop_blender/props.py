@@ -123,6 +123,14 @@ class AUTOSCOOP_PG_settings(bpy.types.PropertyGroup):
     check_text: StringProperty(name="Scene check", default="")  # type: ignore[valid-type]
 
     # --- optimizer ---------------------------------------------------------------
+    optimizer: EnumProperty(  # type: ignore[valid-type]
+        name="Optimizer",
+        items=[
+            ("es", "Evolution strategy", "The paper's: one sensor at a time, each by an ES"),
+            ("greedy", "Greedy", "Set cover over positions x orientations: fewer sensors"),
+        ],
+        default="es",
+    )
     method: EnumProperty(  # type: ignore[valid-type]
         name="Coverage method",
         items=[

@@ -94,7 +94,7 @@ class AUTOSCOOP_PT_optimizer(_Panel, bpy.types.Panel):
         props = context.scene.autoscoop
         layout = self.layout
         layout.use_property_split = True
-        for name in ("method", "rho", "seed", "grid_m"):
+        for name in ("optimizer", "method", "rho", "seed", "grid_m"):
             layout.prop(props, name)
         row = layout.row()
         row.use_property_split = False

@@ -349,6 +349,7 @@ def _time_cached(grid, caster, poses, q, per_position, rng) -> float:
 
 CONFIGS = {
     "default": OptimizeSettings(),
+    "greedy": OptimizeSettings(optimizer="greedy"),
     "position_step_1m": OptimizeSettings(position_step_m=1.0),
     "position_step_4m": OptimizeSettings(position_step_m=4.0),
 }

@@ -52,7 +52,12 @@ def build_parser() -> argparse.ArgumentParser:
         nargs="?",
         help=".blend file (default: the file Blender opened, else sample_blends/two_routes)",
     )
-    opt.add_argument("--optimizer", default="es", help="es (the paper's evolution strategy)")
+    opt.add_argument(
+        "--optimizer",
+        choices=("es", "greedy"),
+        help="es: the paper's evolution strategy (default); greedy: set cover over "
+        "positions x orientations (fewer sensors)",
+    )
     opt.add_argument("--method", choices=("targeted", "pointcloud"), help="coverage method")
     opt.add_argument("--seed", type=int, help="random seed (default 0)")
     opt.add_argument("--config", help="TOML file of settings and model")

@@ -56,11 +56,9 @@ def coverage(args: argparse.Namespace) -> int:
 def optimize(args: argparse.Namespace) -> int:
     """``optimize``: the ES on a scene; result files in the output folder."""
     settings, model = load_config(args.config)
-    overrides = {"method": args.method, "seed": args.seed}
+    overrides = {"optimizer": args.optimizer, "method": args.method, "seed": args.seed}
     settings = replace(settings, **{k: v for k, v in overrides.items() if v is not None})
     settings = settings.validated()
-    if args.optimizer != "es":
-        raise InputError(f"--optimizer {args.optimizer!r}: only 'es' is available")
     out_dir = Path(args.out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"{out_dir}: exists and is not a folder")

@@ -119,6 +119,24 @@ class CachedTargetedEvaluator:
             _cells=reach.cells[covered],
         )
 
+    def cover_many(
+        self, model: SensorModel, pose: SensorPose, rots: NDArray[np.float64]
+    ) -> tuple[NDArray[np.bool_], NDArray[np.int64]]:
+        """Which target points each of O orientations ``rots`` (O, 3, 3) covers from the
+        pose's position: (O, K) bool over the K target ordinals also returned. Same
+        per-point answers as ``evaluate`` for each orientation; rays only to points
+        some orientation needs and nothing has asked about yet."""
+        key = (model, pose.x, pose.y, pose.z, None)
+        reach = self._get_reach(key, model, pose.position, None)
+        answers = self._answers.setdefault(key, np.full(len(reach.cells), _UNKNOWN, np.int8))
+        in_view, density = view(model, rots, reach.lines)
+        need = in_view & (density >= model.min_density_per_m2)
+        ask = np.flatnonzero(need.any(axis=0) & (answers == _UNKNOWN))
+        clear = clear_sight(self.caster, pose.position, reach.lines, ask)
+        answers[ask] = np.where(clear, _CLEAR, _BLOCKED)
+        self.extra_rays += len(ask)
+        return need & (answers == _CLEAR), reach.ordinal
+
     def reachable(
         self, model: SensorModel, pose: SensorPose, wanted: NDArray[np.bool_]
     ) -> NDArray[np.int64]:

@@ -144,26 +144,33 @@ def clear_sight(
 
 
 def to_sensor(d: F64, rot: F64) -> F64:
-    """Directions (K, 3) in the sensor frame of ``rot`` (rows forward, left, up).
+    """Directions (K, 3) in the sensor frame of ``rot`` (rows forward, left, up), or
+    in each of several frames ``rot`` (O, 3, 3) at once, giving (O, K, 3).
 
-    Written out per component (not a matrix product) so that every row's result is
-    the same whatever rows it is computed with: the cached and the direct evaluators
-    must agree to the last bit on which points they cover.
+    Written out per component (not a matrix product) so that every element's value is
+    the same whatever rows or frames it is computed with: the cached, the batched and
+    the direct evaluators must agree to the last bit on which points they cover.
     """
     x, y, z = d[:, 0], d[:, 1], d[:, 2]
-    out = np.empty_like(d)
+    if rot.ndim == 2:
+        out = np.empty_like(d)
+        for k in range(3):
+            out[:, k] = rot[k, 0] * x + rot[k, 1] * y + rot[k, 2] * z
+        return out
+    out = np.empty((len(rot), len(d), 3))
     for k in range(3):
-        out[:, k] = rot[k, 0] * x + rot[k, 1] * y + rot[k, 2] * z
+        out[:, :, k] = rot[:, k, 0:1] * x + rot[:, k, 1:2] * y + rot[:, k, 2:3] * z
     return out
 
 
 def view(model: SensorModel, rot: F64, lines: SightLines) -> tuple[NDArray[np.bool_], F64]:
     """(K,) whether each target point lies inside range and FoV, and (K,) the
-    pattern's density on the surface under it (points/m^2, sensor units)."""
+    pattern's density on the surface under it (points/m^2, sensor units); for
+    several frames ``rot`` (O, 3, 3), both are (O, K)."""
     with np.errstate(invalid="ignore"):
-        in_view = (lines.dist > 1e-9) & (lines.dist <= model.range_m)
+        in_range = (lines.dist > 1e-9) & (lines.dist <= model.range_m)
         local = to_sensor(lines.d, rot)
-        in_view &= model.in_fov(local)
+        in_view = in_range & model.in_fov(local)
         ground = local if lines.gd is lines.d else to_sensor(lines.gd, rot)
         density = model.rays_per_sr(ground) * lines.surface
     return in_view, np.where(in_view, density, 0.0)

@@ -39,6 +39,7 @@ from .coverage import (
 from .errors import InputError
 from .es import ESParams, SearchSpace, SensorSearch
 from .fitness import FitnessParams, FixedSensors, fitness
+from .greedy import greedy_steps
 from .grid import GroundGrid
 from .masts import choose_sites, group_positions
 from .placement import Placement, build_placement
@@ -47,6 +48,9 @@ from .scene_model import Area, SceneModel
 from .sensors import SensorModel, SensorPose
 
 F64 = NDArray[np.float64]
+
+# "es": the paper's evolution strategy; "greedy": set cover over a candidate set.
+OPTIMIZERS = ("es", "greedy")
 
 
 @dataclass(frozen=True)
@@ -63,6 +67,7 @@ class OptimizeSettings:
     oversample (None: derived), alpha: pointcloud knobs (``coverage.PointcloudEvaluator``).
     """
 
+    optimizer: str = "es"
     method: str = "targeted"
     grid_m: float = 1.0
     target_height_m: float = 0.0
@@ -97,6 +102,10 @@ class OptimizeSettings:
     def validated(self) -> OptimizeSettings:
         if self.method not in METHODS:
             raise InputError(f"method {self.method!r}: choose one of {', '.join(METHODS)}")
+        if self.optimizer not in OPTIMIZERS:
+            raise InputError(f"optimizer {self.optimizer!r}: choose one of {', '.join(OPTIMIZERS)}")
+        if self.optimizer == "greedy" and self.method != "targeted":
+            raise InputError("the greedy optimizer needs the targeted method")
         checks = [
             ("grid_m", self.grid_m > 0),
             ("target_height_m", self.target_height_m >= 0),
@@ -135,7 +144,13 @@ def _build(kind: type, table: Mapping[str, Any], label: str) -> Any:
     if unknown:
         raise InputError(f"{label}: unknown setting(s) {', '.join(unknown)}")
     for key, value in table.items():
-        want = {"method": str, "cache": bool, "es": ESParams, "fitness": FitnessParams}.get(key)
+        want = {
+            "optimizer": str,
+            "method": str,
+            "cache": bool,
+            "es": ESParams,
+            "fitness": FitnessParams,
+        }.get(key)
         if want is not None:
             ok = isinstance(value, want)
         else:
@@ -333,6 +348,10 @@ class OptimizationRun:
     def steps(self) -> Iterator[Progress]:
         """Run to the end, yielding after each evaluation; then ``result()``."""
         s = self.settings
+        if s.optimizer == "greedy":
+            yield from greedy_steps(self)
+            yield from self._wrap_up()
+            return
         stale = 0
         while True:
             if self.coverage >= s.rho:
@@ -372,6 +391,10 @@ class OptimizationRun:
             stale = 0
             self._fix(pose, cov, fit.f_s, epochs, evals)
             yield self._progress("fixed")
+        yield from self._wrap_up()
+
+    def _wrap_up(self) -> Iterator[Progress]:
+        """After the last sensor: masts, the final full evaluation, the result."""
         self.close()
         yield self._progress("masts")
         masts = self._group_masts()

@@ -50,7 +50,6 @@ def result_dict(
     result: OptimizationResult,
     placement: Placement,
     extra_versions: dict[str, str] | None = None,
-    optimizer: str = "es",
 ) -> dict[str, Any]:
     """The result.json document.
 
@@ -61,7 +60,7 @@ def result_dict(
     return {
         "schema": RESULT_SCHEMA,
         "scene": result.scene.source,
-        "optimizer": optimizer,
+        "optimizer": settings.optimizer,
         "method": settings.method,
         "seed": settings.seed,
         "settings": settings.to_dict(),

@@ -211,9 +211,9 @@ class SensorModel:
         return d / np.linalg.norm(d, axis=-1, keepdims=True)
 
     def in_fov(self, d_sensor: NDArray[np.float64]) -> NDArray[np.bool_]:
-        """(N,) whether unit directions (N, 3) in the sensor frame lie inside the FoV."""
+        """(...,) whether unit directions (..., 3) in the sensor frame lie in the FoV."""
         ha, va = self._half_fov()
-        fwd, left, up = d_sensor[:, 0], d_sensor[:, 1], d_sensor[:, 2]
+        fwd, left, up = d_sensor[..., 0], d_sensor[..., 1], d_sensor[..., 2]
         tol = 1e-9
         if self.pattern == "angular":
             # |elevation| <= va and |azimuth| <= ha, without the inverse trigonometry.
@@ -230,12 +230,12 @@ class SensorModel:
         return ok & su & sv
 
     def rays_per_sr(self, d_sensor: NDArray[np.float64]) -> NDArray[np.float64]:
-        """(N,) rays per steradian of the sensor's own pattern along directions (N, 3)."""
+        """(...,) rays per steradian of the sensor's own pattern along directions (..., 3)."""
         ha, va = self._half_fov()
         if self.pattern == "angular":
-            cos_b = np.sqrt(np.clip(1.0 - d_sensor[:, 2] ** 2, 1e-12, None))
+            cos_b = np.sqrt(np.clip(1.0 - d_sensor[..., 2] ** 2, 1e-12, None))
             return self.n_rays / (4 * ha * va * cos_b)
-        fwd = np.clip(d_sensor[:, 0], 1e-12, None)
+        fwd = np.clip(d_sensor[..., 0], 1e-12, None)
         return self.n_rays / (4 * math.tan(ha) * math.tan(va) * fwd**3)
 
     def max_rays_per_sr(self) -> float:

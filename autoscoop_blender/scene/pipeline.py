@@ -66,7 +66,12 @@ def settings_from(props: Any) -> OptimizeSettings:
         mu=props.es_mu, lam=props.es_lam, eps=props.es_eps, max_epochs=props.es_max_epochs
     )
     return OptimizeSettings(
-        method=props.method, grid_m=props.grid_m, rho=props.rho, seed=props.seed, es=es
+        optimizer=props.optimizer,
+        method=props.method,
+        grid_m=props.grid_m,
+        rho=props.rho,
+        seed=props.seed,
+        es=es,
     ).validated()
 
 

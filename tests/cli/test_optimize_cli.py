@@ -133,3 +133,20 @@ def test_bad_optimize_input(tmp_path):
     code, _, stderr = run_headless("optimize", FLAT, "--resume", "--out-dir", tmp_path / "none")
     assert code == 2 and "no checkpoint to resume from" in stderr
     assert not (tmp_path / "o" / "result.json").exists()
+
+
+def test_greedy_optimizer_from_the_command_line(tmp_path):
+    cfg = tmp_path / "goal.toml"
+    cfg.write_text("rho = 0.6\n")
+    out = tmp_path / "greedy"
+    code, _, stderr = run_headless(
+        "optimize", FLAT, "--optimizer", "greedy", "--config", cfg, "--out-dir", out
+    )
+    assert code == 0, stderr
+    res = json.loads((out / "result.json").read_text())
+    assert res["optimizer"] == "greedy" and res["settings"]["optimizer"] == "greedy"
+    assert res["metrics"]["coverage_fraction"] >= 0.6
+    code, _, stderr = run_headless(
+        "optimize", FLAT, "--optimizer", "greedy", "--method", "pointcloud", "--out-dir", out
+    )
+    assert code == 2 and "greedy optimizer needs the targeted method" in stderr
