@@ -74,11 +74,12 @@ def greedy_steps(run: OptimizationRun) -> Iterator[Progress]:
     used_positions = {
         index[(s.pose.x, s.pose.y)] for s in run.sensors if (s.pose.x, s.pose.y) in index
     }
+    by_point = matrix.tocsc()  # which candidates cover a point: for the gain updates
+    gains = matrix @ (~run.fixed.covered).astype(np.float32)
     while int(run.fixed.covered.sum()) < goal:
         if len(run.sensors) >= run.max_sensors:
             run.stop_reason = f"stopped at max_sensors = {run.max_sensors}"
             return
-        gains = matrix @ (~run.fixed.covered).astype(np.float32)
         best = float(gains.max())
         if best <= 0:
             run.stop_reason = (
@@ -93,7 +94,10 @@ def greedy_steps(run: OptimizationRun) -> Iterator[Progress]:
         x, y = positions[i]
         pose = run.pose(x, y, angles[o, 0], angles[o, 1])
         cov, fit = run.evaluate(pose)
+        newly = cov.covered[~run.fixed.covered[cov.covered]]
         run._fix(pose, cov, float(fit.new_points), 0, 0)
+        # A point covered now adds nothing to any candidate any more.
+        gains -= np.asarray(by_point[:, newly].sum(axis=1)).ravel()
         used_positions.add(i)
         yield run._progress("fixed")
     run.stop_reason = f"reached rho = {settings.rho:.0%} of the target"
