@@ -39,9 +39,14 @@ def scene_fingerprint(scene: SceneModel) -> str:
 class Checkpoint:
     """Append-only JSON-lines file in the output folder."""
 
-    def __init__(self, out_dir: Path, header: dict[str, Any]) -> None:
+    def __init__(
+        self, out_dir: Path, header: dict[str, Any], default_settings: dict[str, Any] | None = None
+    ) -> None:
+        """``default_settings``: every setting's default; a checkpoint written before a
+        setting existed ran as its default does, so a missing key reads as the default."""
         self.path = out_dir / NAME
         self.header = header
+        self.default_settings = default_settings or {}
 
     def start(self) -> None:
         """Begin a fresh checkpoint (any old one is replaced)."""
@@ -61,11 +66,16 @@ class Checkpoint:
         if not parsed:
             raise InputError(f"{self.path}: empty checkpoint")
         header, records = parsed[0], parsed[1:]
-        for key in ("scene_fingerprint", "model", "settings"):
-            if header.get(key) != self.header[key]:
+        stored = dict(header)
+        stored["settings"] = {**self.default_settings, **header.get("settings", {})}
+        for key, what in (
+            ("scene_fingerprint", "a different scene"),
+            ("model", "a different model"),
+            ("settings", "different settings"),
+        ):
+            if stored.get(key) != self.header[key]:
                 raise InputError(
-                    f"{self.path}: made with a different {key.replace('_', ' ')}; "
-                    "run without --resume to start again"
+                    f"{self.path}: made with {what}; run without --resume to start again"
                 )
         # Rewrite without any torn line, so appends follow complete records.
         self.path.write_text(

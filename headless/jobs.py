@@ -74,6 +74,7 @@ def optimize(args: argparse.Namespace) -> int:
             "model": model.to_dict(),
             "settings": settings.to_dict(),
         },
+        default_settings=OptimizeSettings().to_dict(),
     )
     resume = checkpoint.resume() if args.resume else []
     if not args.resume:

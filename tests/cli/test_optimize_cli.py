@@ -9,6 +9,8 @@ import bpy
 import pytest
 
 from autoscoop_blender import names
+from autoscoop_blender.core.errors import InputError
+from headless.checkpoint import Checkpoint
 from tests.cli.conftest import SAMPLES, run_headless
 
 FLAT = SAMPLES / "flat_wall.blend"
@@ -150,3 +152,17 @@ def test_greedy_optimizer_from_the_command_line(tmp_path):
         "optimize", FLAT, "--optimizer", "greedy", "--method", "pointcloud", "--out-dir", out
     )
     assert code == 2 and "greedy optimizer needs the targeted method" in stderr
+
+
+def test_checkpoint_from_before_a_setting_existed_resumes_as_its_default(tmp_path):
+    now = {"optimizer": "es", "seed": 0}
+    header = {"scene_fingerprint": "f", "model": {"kind": "camera"}, "settings": now}
+    old = dict(header, settings={"seed": 0})  # written before "optimizer" was a setting
+    Checkpoint(tmp_path, old).start()
+    Checkpoint(tmp_path, old).append({"n": 1})
+    defaults = {"optimizer": "es", "seed": 0}
+    assert Checkpoint(tmp_path, header, defaults).resume() == [{"n": 1}]
+    # A run asking for another optimizer is not the one in the checkpoint.
+    other = dict(header, settings={"optimizer": "greedy", "seed": 0})
+    with pytest.raises(InputError, match="different settings"):
+        Checkpoint(tmp_path, other, defaults).resume()
