@@ -80,7 +80,10 @@ def optimize_chart(results: dict[str, Any], path: Path) -> None:
         configs.setdefault(r["config"], []).append(r)
     paper = results.get("default_vs_paper", {})
     if paper.get("paper_wall_s"):
-        configs["paper-faithful (pointcloud)"] = [
+        label = "paper-faithful (pointcloud)"
+        if not paper.get("paper_complete", True):
+            label += f", unfinished at {paper['paper_coverage']:.1%}"
+        configs[label] = [
             {"wall_s": paper["paper_wall_s"], "sensors": paper["paper_sensors"],
              "coverage_fraction": paper["paper_coverage"]}
         ]  # fmt: skip

@@ -1,9 +1,11 @@
 """The benchmark's error measure: a method's verdict at a reference point is its grid
 cell's verdict (worked by hand on two flat grids)."""
 
+import json
+
 import numpy as np
 
-from headless.bench_suite import _cell_verdicts
+from headless.bench_suite import _cell_verdicts, paper_figures
 from tests.core.flat import flat_grid
 
 
@@ -27,3 +29,18 @@ def test_points_along_the_target_edge_take_the_nearest_cells_verdict():
     last = np.flatnonzero(np.isclose(coarse.target_xy[:, 0], 3.5))
     verdict = _cell_verdicts(coarse, last, fine)
     assert np.array_equal(verdict, fine.target_xy[:, 0] > 3.0)
+
+
+def test_an_unfinished_paper_run_reports_what_its_checkpoint_holds(tmp_path):
+    header = {"scene_fingerprint": "f", "model": {}, "settings": {}}
+    records = [
+        {"n": 1, "coverage": 0.05, "wall_s": 160.0, "rays_cast": 27_000_000},
+        {"n": 2, "coverage": 0.08, "wall_s": 400.0, "rays_cast": 55_000_000},
+    ]
+    lines = [json.dumps(r) for r in (header, *records)]
+    (tmp_path / "checkpoint.jsonl").write_text("\n".join(lines) + "\n")
+    fig = paper_figures(tmp_path)
+    assert fig["paper_complete"] is False and fig["paper_masts"] is None
+    assert (fig["paper_sensors"], fig["paper_coverage"]) == (2, 0.08)
+    assert (fig["paper_wall_s"], fig["paper_rays_cast"]) == (400.0, 55_000_000)
+    assert "missing" in paper_figures(tmp_path / "none")["paper_source"]
