@@ -158,6 +158,18 @@ def test_greedy_picks_the_candidate_that_adds_most():
     assert first >= best
 
 
+def test_greedy_prefers_a_mast_already_standing_when_it_adds_nearly_as_much():
+    from autoscoop_blender.core.greedy import MAST_PREFERENCE, pick_candidate
+
+    best = 100.0
+    near = best / (1 + MAST_PREFERENCE) + 1  # on a mast, just inside the preference
+    far = best / (1 + MAST_PREFERENCE) - 1  # on a mast, just outside it
+    assert pick_candidate(np.array([best, near]), np.array([False, True])) == 1
+    assert pick_candidate(np.array([best, far]), np.array([False, True])) == 0
+    # Without masts in play it is the plain largest gain, the first on ties.
+    assert pick_candidate(np.array([3.0, 7.0, 7.0]), np.zeros(3, bool)) == 1
+
+
 def test_greedy_needs_the_targeted_method():
     from autoscoop_blender.core.errors import InputError
 
