@@ -73,18 +73,31 @@ class FitnessParams:
 class FixedSensors:
     """What the fitness needs of the sensors fixed so far.
 
-    covered: (N,) bool over the grid's target points; positions: (z, 2) masts, local XY.
+    covered: (N,) bool over the grid's target points; positions: (z, 2) masts, local XY;
+    n_covered: how many of ``covered`` are set (kept by ``add``, so that progress
+    reports need not count N points after every evaluation).
     """
 
     covered: NDArray[np.bool_]
     positions: list[tuple[float, float]] = field(default_factory=list)
+    n_covered: int = 0
+    _placed: F64 | None = field(default=None, repr=False)
 
     def add(self, cov: SensorCoverage) -> int:
         """Fix a sensor; returns how many target points it newly covers."""
         new = int((~self.covered[cov.covered]).sum())
         self.covered[cov.covered] = True
         self.positions.append((cov.pose.x, cov.pose.y))
+        self.n_covered += new
         return new
+
+    @property
+    def placed(self) -> F64:
+        """(z, 2) ``positions`` as an array, converted once per fixed sensor (the
+        fitness of every candidate needs it)."""
+        if self._placed is None or len(self._placed) != len(self.positions):
+            self._placed = np.asarray(self.positions, dtype=float).reshape(-1, 2)
+        return self._placed
 
 
 @dataclass(frozen=True)
@@ -111,7 +124,7 @@ def fitness(
     z = len(fixed.positions)
     if z == 0:
         return Fitness(params.w_ca * f_ca, f_ca, 0.0, 0.0, int(new.sum()))
-    placed = np.asarray(fixed.positions, dtype=float)
+    placed = fixed.placed
     two_theta2 = 2 * params.theta_m**2
     d_sensor = np.hypot(placed[:, 0] - cov.pose.x, placed[:, 1] - cov.pose.y)
     f_ds = f_ca / z * float(np.exp(-(d_sensor**2) / two_theta2).sum())

@@ -88,7 +88,7 @@ def greedy_steps(run: OptimizationRun) -> Iterator[Progress]:
     }
     by_point = matrix.tocsc()  # which candidates cover a point: for the gain updates
     gains = matrix @ (~run.fixed.covered).astype(np.float32)
-    while int(run.fixed.covered.sum()) < goal:
+    while run.fixed.n_covered < goal:
         if len(run.sensors) >= run.max_sensors:
             run.stop_reason = f"stopped at max_sensors = {run.max_sensors}"
             return

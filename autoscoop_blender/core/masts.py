@@ -37,33 +37,50 @@ def group_positions(xy: F64, join_m: float) -> NDArray[np.int_]:
 def choose_sites(
     xy: F64,
     labels: NDArray[np.int_],
-    coverage_with: Callable[[F64], int],
+    cover: Callable[[int, float, float], NDArray[np.int_]],
+    n_points: int,
     keep_at_least: int,
 ) -> tuple[F64, NDArray[np.int_]]:
     """Mast sites for grouped sensors.
 
-    xy: (n, 2) sensor positions; labels: their groups; ``coverage_with(new_xy)`` gives
-    the number of target points covered when the sensors stand at ``new_xy`` (n, 2).
-    Returns the sensors' new positions (n, 2) and their final mast labels (a group
-    that cannot merge without losing coverage below ``keep_at_least`` is split).
+    xy: (n, 2) sensor positions; labels: their groups; ``cover(i, x, y)`` gives the
+    target points (distinct indices below ``n_points``) sensor i covers when it
+    stands at (x, y). Returns the sensors' new positions (n, 2) and their final mast
+    labels (a group that cannot merge without losing coverage below ``keep_at_least``
+    is split).
+
+    Each trial site is scored by the change it makes on the points its moved sensors
+    cover before or after the move, not by a recount of every sensor: the work grows
+    with the number of sensors, not with its square.
     """
     current = xy.copy()
     final = labels.copy()
+    covers = [np.asarray(cover(i, *p), dtype=np.int64) for i, p in enumerate(current)]
+    counts = np.zeros(n_points, dtype=np.int32)  # sensors covering each point
+    for c in covers:
+        counts[c] += 1
+    covered = int(np.count_nonzero(counts))
     next_label = int(labels.max()) + 1 if len(labels) else 0
     for g in range(int(labels.max()) + 1 if len(labels) else 0):
         members = np.flatnonzero(labels == g)
         sites = np.unique(current[members], axis=0)
         if len(sites) == 1:
             continue
-        best_site, best_cov = None, -1
+        best = (-1, None, None)  # (covered, site, {moved sensor: its new cover})
         for site in sites:
-            trial = current.copy()
-            trial[members] = site
-            cov = coverage_with(trial)
-            if cov > best_cov:
-                best_site, best_cov = site, cov
-        if best_cov >= keep_at_least:
-            current[members] = best_site
+            moved = [k for k in members if not np.array_equal(current[k], site)]
+            new = {k: np.asarray(cover(k, *site), dtype=np.int64) for k in moved}
+            after = covered + _gain(counts, [covers[k] for k in moved], list(new.values()))
+            if after > best[0]:
+                best = (after, site, new)
+        after, site, new = best
+        if after >= keep_at_least:
+            for k, c in new.items():
+                counts[covers[k]] -= 1
+                counts[c] += 1
+                covers[k] = c
+            current[members] = site
+            covered = after
         else:
             # Keep members apart: one mast per distinct position.
             for site in sites[1:]:
@@ -71,6 +88,25 @@ def choose_sites(
                 final[at] = next_label
                 next_label += 1
     return current, _renumber(final)
+
+
+def _gain(counts: NDArray[np.int32], old: list, new: list) -> int:
+    """Change in the number of covered points when covers ``old`` are replaced by
+    ``new`` (lists of index arrays); ``counts`` is left as it was."""
+    if not old:
+        return 0
+    touched = np.unique(np.concatenate(old + new))
+    before = int(np.count_nonzero(counts[touched]))
+    for c in old:
+        counts[c] -= 1
+    for c in new:
+        counts[c] += 1
+    after = int(np.count_nonzero(counts[touched]))
+    for c in new:
+        counts[c] -= 1
+    for c in old:
+        counts[c] += 1
+    return after - before
 
 
 def _renumber(labels: NDArray[np.int_]) -> NDArray[np.int_]:

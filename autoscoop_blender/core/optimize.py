@@ -338,7 +338,7 @@ class OptimizationRun:
     # --- the run -----------------------------------------------------------------
     @property
     def coverage(self) -> float:
-        return float(self.fixed.covered.mean())
+        return self.fixed.n_covered / len(self.fixed.covered)
 
     def _progress(self, phase: str, epoch: int = 0) -> Progress:
         return Progress(
@@ -520,17 +520,14 @@ class OptimizationRun:
         xy = np.array([[s.pose.x, s.pose.y] for s in self.sensors])
         labels = group_positions(xy, self.settings.mast_join_m)
 
-        def coverage_with(new_xy: F64) -> int:
-            covered = np.zeros(self.grid.n_targets, dtype=bool)
-            for s, (x, y) in zip(self.sensors, new_xy):
-                pose = self.pose(x, y, s.pose.pitch_deg, s.pose.yaw_deg)
-                cov = self.evaluator.evaluate(self.model, pose)
-                covered[cov.covered] = True
-            return int(covered.sum())
+        def cover(i: int, x: float, y: float) -> NDArray[np.int64]:
+            s = self.sensors[i]
+            pose = self.pose(x, y, s.pose.pitch_deg, s.pose.yaw_deg)
+            return self.evaluator.evaluate(self.model, pose).covered
 
-        before = int(self.fixed.covered.sum())
         goal = math.ceil(self.settings.rho * self.grid.n_targets)
-        new_xy, labels = choose_sites(xy, labels, coverage_with, min(before, goal))
+        keep = min(self.fixed.n_covered, goal)
+        new_xy, labels = choose_sites(xy, labels, cover, self.grid.n_targets, keep)
         masts = []
         for s, (x, y), label in zip(self.sensors, new_xy, labels):
             s.pose = self.pose(x, y, s.pose.pitch_deg, s.pose.yaw_deg)
@@ -620,8 +617,8 @@ def _score_in_worker(
     """f_s of each individual given the fixed sensors' state; and the rays cast."""
     run = _WORKER_RUN
     assert run is not None
-    run.fixed.covered[:] = np.unpackbits(covered, count=len(run.fixed.covered)).astype(bool)
-    run.fixed.positions = list(positions)
+    n = len(run.fixed.covered)
+    run.fixed = FixedSensors(np.unpackbits(covered, count=n).astype(bool), list(positions))
     before = run.sight_rays
     fits = [run.evaluate(run.pose(*ind))[1].f_s for ind in pop]
     return fits, run.sight_rays - before

@@ -47,6 +47,24 @@ def test_cached_equals_direct(model, band):
     assert cached.positions == len(positions)
 
 
+def test_evicted_positions_answer_the_same_without_new_rays():
+    """A byte bound that holds one position's geometry: revisiting the other position
+    recomputes its geometry but keeps its ray answers, so no ray is cast twice."""
+    grid, caster = flat_grid(spacing=1.0, boxes=BOXES, target=(-60, -60, 60, 60))
+    roomy_caster, tight_caster = CountingCaster(caster), CountingCaster(caster)
+    roomy = CachedTargetedEvaluator(grid, roomy_caster)
+    tight = CachedTargetedEvaluator(grid, tight_caster, max_bytes=1)
+    poses = [place(grid, x, 0.0, 7.0, 40.0, yaw) for yaw in (0, 90, 180) for x in (-20, 20)]
+    for pose in poses + poses:  # every evaluation after the first evicts the other position
+        a = roomy.evaluate(PAPER_CAMERA, pose)
+        b = tight.evaluate(PAPER_CAMERA, pose)
+        assert np.array_equal(a.covered, b.covered)
+        assert np.array_equal(a.chi, b.chi)
+    assert len(tight._reach) == 1 and len(roomy._reach) == 2
+    assert tight_caster.rays == roomy_caster.rays > 0
+    assert tight._bytes == next(iter(tight._reach.values())).nbytes
+
+
 def test_out_of_limits_and_reports_go_direct():
     grid, caster = flat_grid(spacing=1.0, boxes=BOXES, target=(-60, -60, 60, 60))
     cached = CachedTargetedEvaluator(grid, caster)
