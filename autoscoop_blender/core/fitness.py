@@ -32,7 +32,9 @@ Choices where the paper is silent or ambiguous:
   beside the road still counts), ``theta_m`` = 20 m for Eq. 3 and 4 (about half a
   camera footprint's reach). Outside cells count only within the band where
   tau >= 0.05 (d_pp <= 2.45 theta_tau); beyond it tau is negligible and no ray is
-  cast for it.
+  cast for it. Likewise the sums of Eq. 3 and 4 run over the fixed sensors within
+  6 theta (120 m), found in a bucket index: a sensor farther away adds under 1.5e-8,
+  and the full sums would make each candidate's cost grow with the sensors fixed.
 """
 
 from __future__ import annotations
@@ -50,6 +52,8 @@ F64 = NDArray[np.float64]
 
 # tau below this is treated as zero (see ``FitnessParams.band_m``).
 TAU_FLOOR = 0.05
+# Eq. 3 and 4 count fixed sensors within this many theta: exp(-6^2 / 2) = 1.5e-8.
+CLOSENESS_CUTOFF = 6.0
 
 
 @dataclass(frozen=True)
@@ -81,7 +85,9 @@ class FixedSensors:
     covered: NDArray[np.bool_]
     positions: list[tuple[float, float]] = field(default_factory=list)
     n_covered: int = 0
-    _placed: F64 | None = field(default=None, repr=False)
+    _bucket_m: float = field(default=0.0, repr=False)
+    _buckets: dict[tuple[int, int], list[int]] = field(default_factory=dict, repr=False)
+    _indexed: int = field(default=0, repr=False)
 
     def add(self, cov: SensorCoverage) -> int:
         """Fix a sensor; returns how many target points it newly covers."""
@@ -91,13 +97,25 @@ class FixedSensors:
         self.n_covered += new
         return new
 
-    @property
-    def placed(self) -> F64:
-        """(z, 2) ``positions`` as an array, converted once per fixed sensor (the
-        fitness of every candidate needs it)."""
-        if self._placed is None or len(self._placed) != len(self.positions):
-            self._placed = np.asarray(self.positions, dtype=float).reshape(-1, 2)
-        return self._placed
+    def near(self, x: float, y: float, radius: float) -> F64:
+        """(k, 2) the fixed positions within ``radius`` of (x, y), in the order fixed.
+
+        Looked up in square buckets of side ``radius`` (the 3 x 3 around (x, y)), so a
+        candidate's cost does not grow with the number of sensors fixed so far.
+        """
+        if self._bucket_m != radius:
+            self._bucket_m, self._buckets, self._indexed = radius, {}, 0
+        for k in range(self._indexed, len(self.positions)):
+            px, py = self.positions[k]
+            key = (math.floor(px / radius), math.floor(py / radius))
+            self._buckets.setdefault(key, []).append(k)
+        self._indexed = len(self.positions)
+        i, j = math.floor(x / radius), math.floor(y / radius)
+        ids = sorted(
+            k for di in (-1, 0, 1) for dj in (-1, 0, 1) for k in self._buckets.get((i + di, j + dj), ())
+        )
+        xy = np.array([self.positions[k] for k in ids], dtype=float).reshape(-1, 2)
+        return xy[np.hypot(xy[:, 0] - x, xy[:, 1] - y) <= radius]
 
 
 @dataclass(frozen=True)
@@ -124,16 +142,21 @@ def fitness(
     z = len(fixed.positions)
     if z == 0:
         return Fitness(params.w_ca * f_ca, f_ca, 0.0, 0.0, int(new.sum()))
-    placed = fixed.placed
-    two_theta2 = 2 * params.theta_m**2
-    d_sensor = np.hypot(placed[:, 0] - cov.pose.x, placed[:, 1] - cov.pose.y)
-    f_ds = f_ca / z * float(np.exp(-(d_sensor**2) / two_theta2).sum())
+    f_ds = f_ca / z * _closeness(fixed, cov.pose.x, cov.pose.y, params.theta_m)
     f_sc = 0.0
     n_cells = len(cov.covered) + len(cov.outside)
     if n_cells:
         total = grid.target_xy[cov.covered].sum(axis=0) + grid.xy(cov.outside).sum(axis=0)
-        centroid = total / n_cells
-        d_area = np.hypot(placed[:, 0] - centroid[0], placed[:, 1] - centroid[1])
-        f_sc = f_ca / z * float(np.exp(-(d_area**2) / two_theta2).sum())
+        cx, cy = total / n_cells
+        f_sc = f_ca / z * _closeness(fixed, cx, cy, params.theta_m)
     f_s = params.w_ca * f_ca + params.w_ds * f_ds + params.w_sc * f_sc
     return Fitness(f_s, f_ca, f_ds, f_sc, int(new.sum()))
+
+
+def _closeness(fixed: FixedSensors, x: float, y: float, theta: float) -> float:
+    """sum_i exp(-d_i^2 / (2 theta^2)) over the fixed sensors i, d_i their distance to
+    (x, y). Sensors beyond CLOSENESS_CUTOFF theta are left out: each would add less
+    than 1.5e-8, and summing over all of them costs every candidate O(sensors)."""
+    near = fixed.near(x, y, CLOSENESS_CUTOFF * theta)
+    d2 = (near[:, 0] - x) ** 2 + (near[:, 1] - y) ** 2
+    return float(np.exp(-d2 / (2 * theta**2)).sum())

@@ -78,3 +78,25 @@ def test_footprint_outside_the_target_decays_with_distance(grid):
     f = fitness(grid, cov(grid, [], [], outside=[near[0], far[0]]), fixed, P)
     assert f.f_ca == pytest.approx(math.exp(-1 / 8) + math.exp(-9 / 8))
     assert f.new_points == 0
+
+
+def test_near_finds_exactly_the_sensors_within_the_radius():
+    rng = np.random.default_rng(4)
+    fixed = FixedSensors(np.zeros(1, dtype=bool))
+    xy = rng.uniform(-500, 500, (400, 2))
+    for k, (x, y) in enumerate(xy):
+        fixed.positions.append((float(x), float(y)))
+        if k % 97 == 0:  # the index grows as sensors are fixed
+            fixed.near(0.0, 0.0, 120.0)
+    for x, y in rng.uniform(-600, 600, (50, 2)):
+        brute = xy[np.hypot(xy[:, 0] - x, xy[:, 1] - y) <= 120.0]
+        assert np.array_equal(fixed.near(x, y, 120.0), brute)  # same rows, same order
+
+
+def test_far_sensors_change_the_closeness_terms_by_less_than_1e_7(grid):
+    """f_ds with sensors 50 m and 300 m away: by hand, the 300 m one adds
+    exp(-300^2 / 800) (about 1e-49), so f_ds is f_ca / 2 * exp(-50^2 / 800)."""
+    fixed = FixedSensors(np.zeros(grid.n_targets, dtype=bool), [(50.0, 0.0), (300.0, 0.0)])
+    f = fitness(grid, cov(grid, [0, 1], [2.0, 2.0]), fixed, P)
+    expected = f.f_ca / 2 * math.exp(-(50.0**2) / (2 * 20.0**2))
+    assert f.f_ds == pytest.approx(expected, rel=1e-7)
