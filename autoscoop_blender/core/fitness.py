@@ -112,7 +112,10 @@ class FixedSensors:
         self._indexed = len(self.positions)
         i, j = math.floor(x / radius), math.floor(y / radius)
         ids = sorted(
-            k for di in (-1, 0, 1) for dj in (-1, 0, 1) for k in self._buckets.get((i + di, j + dj), ())
+            k
+            for di in (-1, 0, 1)
+            for dj in (-1, 0, 1)
+            for k in self._buckets.get((i + di, j + dj), ())
         )
         xy = np.array([self.positions[k] for k in ids], dtype=float).reshape(-1, 2)
         return xy[np.hypot(xy[:, 0] - x, xy[:, 1] - y) <= radius]
