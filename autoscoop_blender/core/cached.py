@@ -107,14 +107,10 @@ class CachedTargetedEvaluator:
             # Reports and out-of-limit poses: nothing to share, ask directly.
             return self._direct.evaluate(model, pose, outside_band_m, visibility)
 
-        key = (model, pose.x, pose.y, pose.z, outside_band_m)
-        reach = self._get_reach(key, model, pose.position, outside_band_m)
-        answers = self._answers.setdefault(key, np.full(len(reach.cells), _UNKNOWN, np.int8))
+        reach, answers = self._position(model, pose, outside_band_m)
         in_view, density = view(model, frame(pose.pitch_deg, pose.yaw_deg), reach.lines)
         need = in_view & (density >= model.min_density_per_m2)
-        ask = np.flatnonzero(need & (answers == _UNKNOWN))
-        clear = clear_sight(self.caster, pose.position, reach.lines, ask)
-        answers[ask] = np.where(clear, _CLEAR, _BLOCKED)
+        rays = self._ask(pose, reach, answers, need)
         covered = need & (answers == _CLEAR)
         is_target = reach.ordinal >= 0
         cov_t = covered & is_target
@@ -127,7 +123,7 @@ class CachedTargetedEvaluator:
             visible=None,
             outside=reach.cells[covered & ~is_target],
             footprint_m2=None,
-            rays=len(ask),
+            rays=rays,
             _cells=reach.cells[covered],
         )
 
@@ -138,15 +134,10 @@ class CachedTargetedEvaluator:
         pose's position: (O, K) bool over the K target ordinals also returned. Same
         per-point answers as ``evaluate`` for each orientation; rays only to points
         some orientation needs and nothing has asked about yet."""
-        key = (model, pose.x, pose.y, pose.z, None)
-        reach = self._get_reach(key, model, pose.position, None)
-        answers = self._answers.setdefault(key, np.full(len(reach.cells), _UNKNOWN, np.int8))
+        reach, answers = self._position(model, pose, None)
         in_view, density = view(model, rots, reach.lines)
         need = in_view & (density >= model.min_density_per_m2)
-        ask = np.flatnonzero(need.any(axis=0) & (answers == _UNKNOWN))
-        clear = clear_sight(self.caster, pose.position, reach.lines, ask)
-        answers[ask] = np.where(clear, _CLEAR, _BLOCKED)
-        self.extra_rays += len(ask)
+        self.extra_rays += self._ask(pose, reach, answers, need.any(axis=0))
         return need & (answers == _CLEAR), reach.ordinal
 
     def reachable(
@@ -157,17 +148,31 @@ class CachedTargetedEvaluator:
         the pattern's densest direction, in the depression band, in line of sight.
         An upper bound (the FoV is not tested as a whole); rays only to wanted points.
         """
-        key = (model, pose.x, pose.y, pose.z, None)
-        reach = self._get_reach(key, model, pose.position, None)
-        answers = self._answers.setdefault(key, np.full(len(reach.cells), _UNKNOWN, np.int8))
+        reach, answers = self._position(model, pose, None)
         is_wanted = np.zeros(len(reach.cells), dtype=bool)
         targets = reach.ordinal >= 0
         is_wanted[targets] = wanted[reach.ordinal[targets]]
-        ask = np.flatnonzero(is_wanted & (answers == _UNKNOWN))
+        self.extra_rays += self._ask(pose, reach, answers, is_wanted)
+        return reach.ordinal[is_wanted & (answers == _CLEAR)]
+
+    def _position(
+        self, model: SensorModel, pose: SensorPose, outside_band_m: float | None
+    ) -> tuple[_Reach, NDArray[np.int8]]:
+        """The pose's position: its reach and its ray answers so far (one per row)."""
+        key = (model, pose.x, pose.y, pose.z, outside_band_m)
+        reach = self._get_reach(key, model, pose.position, outside_band_m)
+        answers = self._answers.setdefault(key, np.full(len(reach.cells), _UNKNOWN, np.int8))
+        return reach, answers
+
+    def _ask(
+        self, pose: SensorPose, reach: _Reach, answers: NDArray[np.int8], rows: NDArray[np.bool_]
+    ) -> int:
+        """Cast a sight ray to each of ``rows`` (bool over the reach) not asked before and
+        keep its answer; returns the number of rays cast."""
+        ask = np.flatnonzero(rows & (answers == _UNKNOWN))
         clear = clear_sight(self.caster, pose.position, reach.lines, ask)
         answers[ask] = np.where(clear, _CLEAR, _BLOCKED)
-        self.extra_rays += len(ask)
-        return reach.ordinal[is_wanted & (answers == _CLEAR)]
+        return len(ask)
 
     def _get_reach(
         self, key: tuple, model: SensorModel, s: NDArray[np.float64], outside_band_m: float | None
