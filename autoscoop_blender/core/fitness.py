@@ -87,38 +87,56 @@ class FixedSensors:
     n_covered: int = 0
     _bucket_m: float = field(default=0.0, repr=False)
     _buckets: dict[tuple[int, int], list[int]] = field(default_factory=dict, repr=False)
+    _around: dict[tuple[int, int], F64] = field(default_factory=dict, repr=False)
     _indexed: int = field(default=0, repr=False)
 
-    def add(self, cov: SensorCoverage) -> int:
-        """Fix a sensor; returns how many target points it newly covers."""
-        new = int((~self.covered[cov.covered]).sum())
-        self.covered[cov.covered] = True
-        self.positions.append((cov.pose.x, cov.pose.y))
-        self.n_covered += new
-        return new
+    def add(self, cov: SensorCoverage) -> NDArray[np.int64]:
+        """Fix a sensor; returns the target ordinals it newly covers."""
+        newly = cov.covered[~self.covered[cov.covered]]
+        self.mark(newly, (cov.pose.x, cov.pose.y))
+        return newly
+
+    def mark(self, newly: NDArray[np.int64], position: tuple[float, float]) -> None:
+        """Fix a sensor at ``position`` (local XY) that newly covers target ordinals
+        ``newly`` (none of them covered before)."""
+        self.covered[newly] = True
+        self.positions.append(position)
+        self.n_covered += len(newly)
 
     def near(self, x: float, y: float, radius: float) -> F64:
         """(k, 2) the fixed positions within ``radius`` of (x, y), in the order fixed.
 
         Looked up in square buckets of side ``radius`` (the 3 x 3 around (x, y)), so a
-        candidate's cost does not grow with the number of sensors fixed so far.
+        candidate's cost does not grow with the number of sensors fixed so far. Each
+        bucket keeps the positions of its 3 x 3 neighbourhood as one array until a
+        sensor is fixed in it: candidates outnumber fixed sensors a thousandfold.
         """
         if self._bucket_m != radius:
-            self._bucket_m, self._buckets, self._indexed = radius, {}, 0
+            self._bucket_m, self._buckets, self._around, self._indexed = radius, {}, {}, 0
         for k in range(self._indexed, len(self.positions)):
-            px, py = self.positions[k]
-            key = (math.floor(px / radius), math.floor(py / radius))
-            self._buckets.setdefault(key, []).append(k)
+            i, j = self._bucket(*self.positions[k])
+            self._buckets.setdefault((i, j), []).append(k)
+            for di in (-1, 0, 1):
+                for dj in (-1, 0, 1):
+                    self._around.pop((i + di, j + dj), None)
         self._indexed = len(self.positions)
-        i, j = math.floor(x / radius), math.floor(y / radius)
-        ids = sorted(
-            k
-            for di in (-1, 0, 1)
-            for dj in (-1, 0, 1)
-            for k in self._buckets.get((i + di, j + dj), ())
-        )
-        xy = np.array([self.positions[k] for k in ids], dtype=float).reshape(-1, 2)
+        key = self._bucket(x, y)
+        xy = self._around.get(key)
+        if xy is None:
+            i, j = key
+            ids = sorted(
+                k
+                for di in (-1, 0, 1)
+                for dj in (-1, 0, 1)
+                for k in self._buckets.get((i + di, j + dj), ())
+            )
+            xy = self._around[key] = np.array(
+                [self.positions[k] for k in ids], dtype=float
+            ).reshape(-1, 2)
         return xy[np.hypot(xy[:, 0] - x, xy[:, 1] - y) <= radius]
+
+    def _bucket(self, x: float, y: float) -> tuple[int, int]:
+        return math.floor(x / self._bucket_m), math.floor(y / self._bucket_m)
 
 
 @dataclass(frozen=True)

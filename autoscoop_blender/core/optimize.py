@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Iterator, Mapping
+from concurrent.futures import Future
 from dataclasses import asdict, dataclass, field, fields, replace
 from functools import lru_cache
 from typing import Any
@@ -260,6 +261,9 @@ class OptimizationRun:
         )
         self.rng = np.random.default_rng(settings.seed)
         self.fixed = FixedSensors(np.zeros(self.grid.n_targets, dtype=bool))
+        # Each fixed sensor's newly covered ordinals and mast, in order: what worker
+        # processes are sent to catch up, instead of the whole covered array each time.
+        self._fixed_log: list[tuple[NDArray[np.int64], tuple[float, float]]] = []
         self.sensors: list[FixedSensor] = []
         self.sight_rays = 0
         self.evaluations = 0
@@ -316,12 +320,11 @@ class OptimizationRun:
             for ind in pop:
                 yield self.evaluate(self.pose(*ind))[1].f_s
             return
-        covered = np.packbits(self.fixed.covered)
         chunks = np.array_split(pop, self._pool.workers)
         futures = [
-            self._pool.executor.submit(_score_in_worker, c, covered, self.fixed.positions)
-            for c in chunks
-            if len(c)
+            self._pool.submit(k, chunk, self._fixed_log)
+            for k, chunk in enumerate(chunks)
+            if len(chunk)
         ]
         for future in futures:
             fits, rays = future.result()
@@ -332,7 +335,7 @@ class OptimizationRun:
     def close(self) -> None:
         """Stop the worker processes (also done when the run finishes)."""
         if self._pool is not None:
-            self._pool.executor.shutdown(cancel_futures=True)
+            self._pool.shutdown()
             self._pool = None
 
     # --- the run -----------------------------------------------------------------
@@ -477,7 +480,7 @@ class OptimizationRun:
     def _fix(
         self, pose: SensorPose, cov: SensorCoverage, f_s: float, epochs: int, evals: int
     ) -> None:
-        new = self.fixed.add(cov)
+        new = self._add(cov)
         self.sensors.append(FixedSensor(pose, f_s, epochs, evals, new))
         if self.on_fixed is not None:
             self.on_fixed(
@@ -499,11 +502,17 @@ class OptimizationRun:
                 }
             )
 
+    def _add(self, cov: SensorCoverage) -> int:
+        """Fix ``cov``'s sensor in the covered state; returns how many points it adds."""
+        newly = self.fixed.add(cov)
+        self._fixed_log.append((newly, (cov.pose.x, cov.pose.y)))
+        return len(newly)
+
     def _replay(self, record: dict[str, Any]) -> None:
         """Re-fix a sensor from a checkpoint record and take over its random state."""
         pose = self.pose(record["x"], record["y"], record["pitch_deg"], record["yaw_deg"])
         cov = self.evaluator.evaluate(self.model, pose, outside_band_m=self.settings.fitness.band_m)
-        new = self.fixed.add(cov)
+        new = self._add(cov)
         self.sensors.append(
             FixedSensor(pose, record["fitness"], record["epochs"], record["evaluations"], new)
         )
@@ -588,19 +597,33 @@ class OptimizationRun:
 
 
 class _Pool:
-    """Worker processes, each holding its own OptimizationRun of the same inputs."""
+    """Worker processes, one executor each so that the run knows which worker takes
+    which chunk: each holds its own OptimizationRun of the same inputs and is sent only
+    the sensors fixed since its last chunk."""
 
     def __init__(self, workers: int, inputs: tuple) -> None:
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor
 
         self.workers = workers
-        self.executor = ProcessPoolExecutor(
-            max_workers=workers,
-            mp_context=multiprocessing.get_context("spawn"),
-            initializer=_start_worker,
-            initargs=inputs,
-        )
+        spawn = multiprocessing.get_context("spawn")
+        self.executors = [
+            ProcessPoolExecutor(
+                max_workers=1, mp_context=spawn, initializer=_start_worker, initargs=inputs
+            )
+            for _ in range(workers)
+        ]
+        self.synced = [0] * workers  # entries of the fixed log each worker has been sent
+
+    def submit(self, k: int, pop: F64, fixed_log: list) -> Future:
+        """Score ``pop`` (P, 4) on worker ``k``, first bringing its fixed sensors up to date."""
+        since = fixed_log[self.synced[k] :]
+        self.synced[k] = len(fixed_log)
+        return self.executors[k].submit(_score_in_worker, pop, since)
+
+    def shutdown(self) -> None:
+        for executor in self.executors:
+            executor.shutdown(cancel_futures=True)
 
 
 _WORKER_RUN: OptimizationRun | None = None
@@ -612,13 +635,14 @@ def _start_worker(scene, caster, model, settings) -> None:
 
 
 def _score_in_worker(
-    pop: F64, covered: NDArray[np.uint8], positions: list[tuple[float, float]]
+    pop: F64, fixed_since: list[tuple[NDArray[np.int64], tuple[float, float]]]
 ) -> tuple[list[float], int]:
-    """f_s of each individual given the fixed sensors' state; and the rays cast."""
+    """f_s of each individual once the sensors fixed since the last chunk are marked;
+    and the rays cast."""
     run = _WORKER_RUN
     assert run is not None
-    n = len(run.fixed.covered)
-    run.fixed = FixedSensors(np.unpackbits(covered, count=n).astype(bool), list(positions))
+    for newly, position in fixed_since:
+        run.fixed.mark(newly, position)
     before = run.sight_rays
     fits = [run.evaluate(run.pose(*ind))[1].f_s for ind in pop]
     return fits, run.sight_rays - before

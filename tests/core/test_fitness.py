@@ -81,16 +81,22 @@ def test_footprint_outside_the_target_decays_with_distance(grid):
 
 
 def test_near_finds_exactly_the_sensors_within_the_radius():
+    """Against brute force, with queries between fixings: a neighbourhood kept from an
+    earlier query must take in the sensors fixed since."""
     rng = np.random.default_rng(4)
     fixed = FixedSensors(np.zeros(1, dtype=bool))
     xy = rng.uniform(-500, 500, (400, 2))
+    queries = rng.uniform(-600, 600, (30, 2))
     for k, (x, y) in enumerate(xy):
         fixed.positions.append((float(x), float(y)))
-        if k % 97 == 0:  # the index grows as sensors are fixed
-            fixed.near(0.0, 0.0, 120.0)
+        if k % 23 == 0:
+            for qx, qy in queries:
+                got = fixed.near(qx, qy, 120.0)
+                brute = xy[: k + 1][np.hypot(xy[: k + 1, 0] - qx, xy[: k + 1, 1] - qy) <= 120.0]
+                assert np.array_equal(got, brute)  # same rows, same order
     for x, y in rng.uniform(-600, 600, (50, 2)):
         brute = xy[np.hypot(xy[:, 0] - x, xy[:, 1] - y) <= 120.0]
-        assert np.array_equal(fixed.near(x, y, 120.0), brute)  # same rows, same order
+        assert np.array_equal(fixed.near(x, y, 120.0), brute)
 
 
 def test_far_sensors_change_the_closeness_terms_by_less_than_1e_7(grid):

@@ -122,12 +122,18 @@ def test_bad_settings():
 
 
 def test_worker_processes_give_the_same_answer():
-    _, alone = run()
+    """Workers are sent only the sensors fixed since their last chunk; on a resumed run
+    the first chunk brings them the replayed ones."""
+    records = []
+    _, alone = run(on_fixed=records.append)
+    assert len(alone.sensors) >= 3
     r, together = run(workers=2)
     assert poses(together) == poses(alone)
     assert together.metrics["coverage_fraction"] == alone.metrics["coverage_fraction"]
     assert together.metrics["evaluations"] == alone.metrics["evaluations"]
     assert r._pool is None  # the workers are gone at the end
+    resumed = run(resume=records[:2], workers=2)[1]
+    assert poses(resumed) == poses(alone)
 
 
 def test_greedy_reaches_the_goal_with_no_more_sensors_than_the_es():
