@@ -85,9 +85,9 @@ def build_parser() -> argparse.ArgumentParser:
         "what",
         nargs="?",
         default="all",
-        choices=("all", "coverage", "optimize"),
+        choices=("all", "coverage", "optimize", "scaling"),
         help="all (default): speed/accuracy, optimizer runs, stability, scaling, "
-        "default vs paper -> bench/results.json and charts",
+        "default vs paper -> bench/results.json and charts; scaling: that section only",
     )
     bench.add_argument("--quick", action="store_true", help="all: a few minutes")
     bench.add_argument("--scene", default=str(SAMPLES / "two_routes.blend"))
@@ -159,8 +159,8 @@ def _samples(args: argparse.Namespace) -> int:
 def _bench(args: argparse.Namespace) -> int:
     from headless import bench
 
-    if args.what == "all":
+    if args.what in ("all", "scaling"):
         from headless import bench_suite
 
-        return bench_suite.run(args)
+        return bench_suite.run(args) if args.what == "all" else bench_suite.run_scaling(args)
     return bench.coverage(args) if args.what == "coverage" else bench.optimize(args)
