@@ -25,6 +25,7 @@ import argparse
 import json
 import math
 import multiprocessing
+import os
 import resource
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -421,28 +422,28 @@ def scaling(plan: Plan, seed: int) -> dict[str, Any]:
     The tiles differ (turned, mirrored, their own trees), and one alone may take a
     quarter longer than another: seconds per m^2 against the first tile would charge
     the algorithm with the scene. So the test of linear time is the whole against the
-    sum of its parts. The part runs in one process while its tiles run one by one in a
-    second, side by side on the two cores, so that both see the same machine: run
-    minutes apart, the same tile took 23 to 26 s on this shared machine. Times are CPU
-    seconds (wall seconds are kept too); k = 1 runs tile 1 twice, which shows the
-    noise of the pairing.
+    sum of its parts. Runs go one at a time, each in a fresh process (its peak memory
+    is its own) on the same core, each part right after its newest tiles alone: two
+    runs side by side slowed each other by 40 % here, and by 8 % more on one core than
+    on the other. Times are CPU seconds; wall seconds are kept too.
     """
+    alone: list[dict[str, Any]] = []
     points = []
     for k in plan.scaling_tiles:
-        tiles = tuple(range(1, k + 1))
-        whole, alone = _side_by_side(tiles, seed)
-        whole["alone"] = alone
-        whole["sum_of_parts_cpu_s"] = round(sum(a["cpu_s"] for a in alone), 2)
+        for t in range(len(alone) + 1, k + 1):
+            alone.append(_scaling_run((t,), seed, f"tile {t:>2} alone"))
+        whole = (
+            dict(alone[0])
+            if k == 1
+            else _scaling_run(tuple(range(1, k + 1)), seed, f"{k:>2} tiles")
+        )
+        parts = alone[:k]
+        whole["sum_of_parts_cpu_s"] = round(sum(a["cpu_s"] for a in parts), 2)
         whole["time_vs_sum_of_parts"] = round(whole["cpu_s"] / whole["sum_of_parts_cpu_s"], 3)
         for key in ("sensors", "evaluations"):
-            whole[f"{key}_vs_sum_of_parts"] = round(whole[key] / sum(a[key] for a in alone), 3)
+            whole[f"{key}_vs_sum_of_parts"] = round(whole[key] / sum(a[key] for a in parts), 3)
         points.append(whole)
-        print(
-            f"  scaling {k:>2} tiles: {whole['target_m2']:.0f} m^2, {whole['sensors']} sensors, "
-            f"{whole['evaluations']} evaluations, {whole['cpu_s']:.1f} CPU s "
-            f"({whole['wall_s']:.1f} s wall), {whole['peak_rss_mb']:.0f} MB; one by one "
-            f"{whole['sum_of_parts_cpu_s']:.1f} CPU s: ratio {whole['time_vs_sum_of_parts']}"
-        )
+        print(f"  scaling {k:>2} tiles against one by one: {whole['time_vs_sum_of_parts']}")
     base = points[0]
     # Per sensor and per evaluation tell whether a miss comes from the algorithm or
     # from a larger part needing more sensors per m^2.
@@ -453,6 +454,7 @@ def scaling(plan: Plan, seed: int) -> dict[str, Any]:
             )
     return {
         "date": date.today().isoformat(),
+        "tiles_alone": alone,
         "points": points,
         "time_vs_sum_of_parts_largest": points[-1]["time_vs_sum_of_parts"],
         "time_per_area_vs_first_tile_largest": points[-1]["s_per_m2_vs_first_tile"],
@@ -460,22 +462,17 @@ def scaling(plan: Plan, seed: int) -> dict[str, Any]:
     }
 
 
-def _side_by_side(tiles: tuple[int, ...], seed: int) -> tuple[dict[str, Any], list[dict[str, Any]]]:
-    """The optimization of ``tiles`` at once and, at the same time in a second process,
-    of each tile alone in turn. The whole has a fresh process, so that its peak memory
-    is its own."""
+def _scaling_run(tiles: tuple[int, ...], seed: int, label: str) -> dict[str, Any]:
+    """``_scaling_point`` in a fresh process; prints its figures."""
     ctx = multiprocessing.get_context("spawn")
-    with (
-        ProcessPoolExecutor(1, mp_context=ctx) as one,
-        ProcessPoolExecutor(1, mp_context=ctx) as other,
-    ):
-        whole = one.submit(_scaling_point, tiles, seed)
-        alone = other.submit(_scaling_points, [(t,) for t in tiles], seed)
-        return whole.result(), alone.result()
-
-
-def _scaling_points(parts: list[tuple[int, ...]], seed: int) -> list[dict[str, Any]]:
-    return [_scaling_point(tiles, seed) for tiles in parts]
+    with ProcessPoolExecutor(1, mp_context=ctx) as pool:
+        row = pool.submit(_scaling_point, tiles, seed).result()
+    print(
+        f"  scaling {label}: {row['target_m2']:.0f} m^2, {row['sensors']} sensors, "
+        f"{row['evaluations']} evaluations, {row['cpu_s']:.1f} CPU s ({row['wall_s']:.1f} s "
+        f"wall), {row['peak_rss_mb']:.0f} MB"
+    )
+    return row
 
 
 def _scaling_point(tiles: tuple[int, ...], seed: int) -> dict[str, Any]:
@@ -484,6 +481,8 @@ def _scaling_point(tiles: tuple[int, ...], seed: int) -> dict[str, Any]:
     forget_blender_script_paths()  # a spawned child: the pip bpy must win
     from autoscoop_blender.scene.bvh import BVHCaster
 
+    if hasattr(os, "sched_setaffinity"):  # every run on the same core (see ``scaling``)
+        os.sched_setaffinity(0, {max(os.sched_getaffinity(0))})
     scene, _ = load_scene(str(SAMPLES / "full_ground.blend"))
     keep = {f"_T{t:02d}_" for t in tiles}
     part = replace(
