@@ -89,7 +89,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="all (default): speed/accuracy, optimizer runs, stability, scaling, "
         "default vs paper -> bench/results.json and charts; scaling: that section only",
     )
-    bench.add_argument("--quick", action="store_true", help="all: a few minutes")
+    bench.add_argument("--quick", action="store_true", help="all, scaling: a few minutes")
     bench.add_argument("--scene", default=str(SAMPLES / "two_routes.blend"))
     bench.add_argument("--poses", type=int, default=12, help="coverage: poses per method")
     bench.add_argument("--seed", type=int, default=0)
