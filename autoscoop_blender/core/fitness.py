@@ -78,17 +78,20 @@ class FixedSensors:
     """What the fitness needs of the sensors fixed so far.
 
     covered: (N,) bool over the grid's target points; positions: (z, 2) masts, local XY;
-    n_covered: how many of ``covered`` are set (kept by ``add``, so that progress
-    reports need not count N points after every evaluation).
+    n_covered: how many of ``covered`` are set (counted once, then kept by ``mark``, so
+    that progress reports need not count N points after every evaluation).
     """
 
     covered: NDArray[np.bool_]
     positions: list[tuple[float, float]] = field(default_factory=list)
-    n_covered: int = 0
+    n_covered: int = field(init=False)
     _bucket_m: float = field(default=0.0, repr=False)
     _buckets: dict[tuple[int, int], list[int]] = field(default_factory=dict, repr=False)
     _around: dict[tuple[int, int], F64] = field(default_factory=dict, repr=False)
     _indexed: int = field(default=0, repr=False)
+
+    def __post_init__(self) -> None:
+        self.n_covered = int(np.count_nonzero(self.covered))
 
     def add(self, cov: SensorCoverage) -> NDArray[np.int64]:
         """Fix a sensor; returns the target ordinals it newly covers."""

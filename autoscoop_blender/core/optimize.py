@@ -605,7 +605,6 @@ class _Pool:
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor
 
-        self.workers = workers
         spawn = multiprocessing.get_context("spawn")
         self.executors = [
             ProcessPoolExecutor(
@@ -614,6 +613,10 @@ class _Pool:
             for _ in range(workers)
         ]
         self.synced = [0] * workers  # entries of the fixed log each worker has been sent
+
+    @property
+    def workers(self) -> int:
+        return len(self.executors)
 
     def submit(self, k: int, pop: F64, fixed_log: list) -> Future:
         """Score ``pop`` (P, 4) on worker ``k``, first bringing its fixed sensors up to date."""

@@ -106,3 +106,10 @@ def test_far_sensors_change_the_closeness_terms_by_less_than_1e_7(grid):
     f = fitness(grid, cov(grid, [0, 1], [2.0, 2.0]), fixed, P)
     expected = f.f_ca / 2 * math.exp(-(50.0**2) / (2 * 20.0**2))
     assert f.f_ds == pytest.approx(expected, rel=1e-7)
+
+
+def test_the_covered_count_starts_from_the_array_and_follows_each_fix():
+    fixed = FixedSensors(np.array([True, False, True, False, False]))
+    assert fixed.n_covered == 2
+    fixed.mark(np.array([1, 4]), (0.0, 0.0))
+    assert fixed.n_covered == 3 + 1 == int(fixed.covered.sum())
