@@ -1,12 +1,16 @@
 """Scene settings of the panel: ``Scene.autoscoop`` (one PropertyGroup).
 
-The sensor fields mirror ``core.sensors.SensorModel``; choosing a preset copies its
-numbers into them, and editing a number keeps the preset name but says "(edited)".
-Everything the optimizer reads is converted in ``scene.pipeline``; nothing here runs
-the optimization.
+The sensor fields mirror ``core.model.sensors.SensorModel``; choosing a preset copies
+its numbers into them. The optimizer's fields are generated from the settings schema
+(``core.settings``): every knob with a panel label becomes a property of the same
+name (dots as underscores), with its type, default, limits and help text. Everything
+the optimizer reads is converted in ``scene.pipeline``; nothing here runs the
+optimization.
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 import bpy
 from bpy.props import (
@@ -18,7 +22,8 @@ from bpy.props import (
     StringProperty,
 )
 
-from .core.sensors import PRESETS, SensorModel
+from .core.model.sensors import PRESETS, SensorModel
+from .core.settings import PANEL_SETTINGS, Setting
 
 _PRESET_ITEMS = [
     ("paper_camera", "Paper camera", "The paper's Table I camera: 80 x 80 deg, 80 m, 7 m mast"),
@@ -122,40 +127,8 @@ class AUTOSCOOP_PG_settings(bpy.types.PropertyGroup):
     flat_footprint: StringProperty(name="Flat footprint", default="")  # type: ignore[valid-type]
     check_text: StringProperty(name="Scene check", default="")  # type: ignore[valid-type]
 
-    # --- optimizer ---------------------------------------------------------------
-    optimizer: EnumProperty(  # type: ignore[valid-type]
-        name="Optimizer",
-        items=[
-            ("es", "Evolution strategy", "The paper's: one sensor at a time, each by an ES"),
-            ("greedy", "Greedy", "Set cover over positions x orientations: fewer sensors"),
-        ],
-        default="es",
-    )
-    method: EnumProperty(  # type: ignore[valid-type]
-        name="Coverage method",
-        items=[
-            ("targeted", "Targeted", "One sight ray per target point that can count (fast, exact)"),
-            ("pointcloud", "Point cloud", "The paper's ray pattern and alpha shape (slow)"),
-        ],
-        default="targeted",
-    )
-    rho: FloatProperty(  # type: ignore[valid-type]
-        name="Coverage goal", default=0.97, min=0.01, max=1.0, subtype="FACTOR"
-    )
-    seed: IntProperty(name="Seed", default=0, min=0)  # type: ignore[valid-type]
-    grid_m: FloatProperty(  # type: ignore[valid-type]
-        name="Grid",
-        default=1.0,
-        min=0.05,
-        max=20.0,
-        unit="LENGTH",
-        description="Target grid spacing",
-    )
+    # --- optimizer: the knobs of PANEL_SETTINGS, added below -------------------------
     show_es: BoolProperty(name="Evolution strategy", default=False)  # type: ignore[valid-type]
-    es_mu: IntProperty(name="Parents (mu)", default=40, min=1, max=10_000)  # type: ignore[valid-type]
-    es_lam: IntProperty(name="Offspring (lambda)", default=20, min=1, max=10_000)  # type: ignore[valid-type]
-    es_eps: FloatProperty(name="Convergence eps", default=0.2, min=0.0, max=1.0)  # type: ignore[valid-type]
-    es_max_epochs: IntProperty(name="Max epochs", default=100, min=0, max=100_000)  # type: ignore[valid-type]
 
     # --- results -----------------------------------------------------------------
     result_json: StringProperty(default="")  # type: ignore[valid-type]
@@ -173,6 +146,34 @@ class AUTOSCOOP_PG_settings(bpy.types.PropertyGroup):
         values["pattern"] = values["pattern"].lower()
         return SensorModel(**values)
 
+
+def knob_property(setting: Setting) -> Any:
+    """The bpy property of a knob: its type, default, limits, help and label."""
+    k = setting.knob
+    common: dict[str, Any] = {"name": k.label, "description": k.help[:1].upper() + k.help[1:]}
+    if k.choices:
+        return EnumProperty(items=list(k.choices), default=setting.default, **common)
+    if setting.kind is bool:
+        return BoolProperty(default=setting.default, **common)
+    limits: dict[str, Any] = {}
+    if k.lo is not None:
+        limits["min"] = k.lo
+    if k.hi is not None:
+        limits["max"] = k.hi
+    if k.soft is not None:
+        limits["soft_min"], limits["soft_max"] = k.soft
+    if setting.kind is int:
+        return IntProperty(default=setting.default, **limits, **common)
+    if setting.name.endswith("_m"):
+        common["unit"] = "LENGTH"
+    if k.lo == 0.0 and k.hi == 1.0:
+        common["subtype"] = "FACTOR"
+    return FloatProperty(default=setting.default, **limits, **common)
+
+
+AUTOSCOOP_PG_settings.__annotations__.update(
+    {s.prop_name: knob_property(s) for s in PANEL_SETTINGS}
+)
 
 classes = (AUTOSCOOP_PG_settings,)
 _register, _unregister = bpy.utils.register_classes_factory(classes)

@@ -8,6 +8,7 @@ import json
 import bpy
 
 from . import names
+from .core.settings import PANEL_SETTINGS
 from .scene import pipeline
 
 
@@ -94,8 +95,9 @@ class AUTOSCOOP_PT_optimizer(_Panel, bpy.types.Panel):
         props = context.scene.autoscoop
         layout = self.layout
         layout.use_property_split = True
-        for name in ("optimizer", "method", "rho", "seed", "grid_m"):
-            layout.prop(props, name)
+        for setting in PANEL_SETTINGS:
+            if "." not in setting.path:
+                layout.prop(props, setting.prop_name)
         row = layout.row()
         row.use_property_split = False
         row.prop(
@@ -103,8 +105,9 @@ class AUTOSCOOP_PT_optimizer(_Panel, bpy.types.Panel):
         )
         if props.show_es:
             col = layout.column(align=True)
-            for name in ("es_mu", "es_lam", "es_eps", "es_max_epochs"):
-                col.prop(props, name)
+            for setting in PANEL_SETTINGS:
+                if setting.path.startswith("es."):
+                    col.prop(props, setting.prop_name)
 
 
 class AUTOSCOOP_PT_run(_Panel, bpy.types.Panel):

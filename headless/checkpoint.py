@@ -1,7 +1,7 @@
 """The checkpoint of a long run: one JSON line per fixed sensor, appended as it is fixed.
 
 Line 1 is a header naming what the run depends on (scene fingerprint, model,
-settings); every further line is a record from ``OptimizationRun.on_fixed``. A run
+settings); every further line is a record from ``core.run.Run``'s ``on_fixed``. A run
 interrupted by Ctrl-C or a crash keeps every sensor fixed so far, and ``--resume``
 reads them back to go on exactly where it stopped (the records carry the random
 generator's state).
@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from autoscoop_blender.core.errors import InputError
-from autoscoop_blender.core.scene_model import SceneModel
+from autoscoop_blender.core.model.scene import SceneModel
 
 NAME = "checkpoint.jsonl"
 

@@ -2,6 +2,9 @@
 
 A user mistake (``AutoscoopError``) prints one line ``error: <object>: <problem>`` on
 stderr and writes nothing; warnings print as ``warning: ...`` and the job goes on.
+The options that set a knob are generated from the settings schema
+(``core/settings.py``: its ``flag``, type, choices and help). The users' commands run
+in ``jobs``; ``build``, ``samples`` and ``bench`` are developer tools in ``devtools``.
 """
 
 from __future__ import annotations
@@ -11,9 +14,10 @@ import logging
 import sys
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
-REPO = Path(__file__).resolve().parent.parent
-SAMPLES = REPO / "sample_blends"
+from autoscoop_blender.core.settings import CoverageSettings, OptimizeSettings, settings_schema
+from headless.paths import SAMPLES
 
 
 class _Parser(argparse.ArgumentParser):
@@ -23,6 +27,28 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"error: {message} (see {self.prog} --help)\n")
 
 
+def add_knob_options(parser: argparse.ArgumentParser, cls: type, overrides: bool = False) -> None:
+    """One option per knob of the settings class ``cls`` that has a flag, from its
+    schema; the option's ``dest`` is the knob's name.
+
+    overrides: the options override a config file, so their default is None (unset).
+    """
+    for setting in settings_schema(cls):
+        k = setting.knob
+        if k.flag is None:
+            continue
+        kw: dict[str, Any] = {"dest": setting.path, "help": k.help}
+        if k.choices:
+            kw["choices"] = [c[0] for c in k.choices]
+            kw["help"] += ": " + "; ".join(f"{value}: {text}" for value, _, text in k.choices)
+        else:
+            kw["type"] = setting.kind
+        kw["default"] = None if overrides else setting.default
+        if setting.default is not None:
+            kw["help"] += f" (default {setting.default})"
+        parser.add_argument(k.flag, **kw)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="python -m headless", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -30,19 +56,7 @@ def build_parser() -> argparse.ArgumentParser:
     cov = sub.add_parser("coverage", help="coverage of a set of sensors on a scene")
     cov.add_argument("scene", nargs="?", help=".blend file (inside Blender: the open one)")
     cov.add_argument("--sensors", required=True, help="sensors JSON (see README)")
-    cov.add_argument("--method", default="targeted", choices=("targeted", "pointcloud"))
-    cov.add_argument("--grid", type=float, default=1.0, help="target grid spacing, m")
-    cov.add_argument("--target-height", type=float, default=0.0, help="m above the road")
-    cov.add_argument(
-        "--min-density", type=float, default=None, help="detection threshold, points/m^2"
-    )
-    cov.add_argument(
-        "--oversample",
-        type=int,
-        default=None,
-        help="pointcloud: rays per pattern ray per axis (default: from spacing, range, grid)",
-    )
-    cov.add_argument("--alpha", type=float, default=1.0, help="pointcloud: alpha / spacing")
+    add_knob_options(cov, CoverageSettings)
     cov.add_argument("--out", required=True, help="result JSON")
     cov.add_argument("--points-csv", help="per-target-point CSV")
 
@@ -52,15 +66,10 @@ def build_parser() -> argparse.ArgumentParser:
         nargs="?",
         help=".blend file (default: the file Blender opened, else sample_blends/two_routes)",
     )
+    add_knob_options(opt, OptimizeSettings, overrides=True)
     opt.add_argument(
-        "--optimizer",
-        choices=("es", "greedy"),
-        help="es: the paper's evolution strategy (default); greedy: set cover over "
-        "positions x orientations (fewer sensors)",
+        "--config", help="TOML file of settings and model (the options above override it)"
     )
-    opt.add_argument("--method", choices=("targeted", "pointcloud"), help="coverage method")
-    opt.add_argument("--seed", type=int, help="random seed (default 0)")
-    opt.add_argument("--config", help="TOML file of settings and model")
     opt.add_argument("--out-dir", default="out", help="output folder (default out/)")
     opt.add_argument("--resume", action="store_true", help="go on from the checkpoint")
     opt.add_argument(
@@ -138,7 +147,7 @@ def _optimize(args: argparse.Namespace) -> int:
 
 
 def _build(args: argparse.Namespace) -> int:
-    from headless import build_extension
+    from headless.devtools import build_extension
 
     argv = ["--out-dir", args.out_dir]
     for platform in args.platform or []:
@@ -149,7 +158,7 @@ def _build(args: argparse.Namespace) -> int:
 
 
 def _samples(args: argparse.Namespace) -> int:
-    from headless import samples
+    from headless.devtools import samples
 
     for path in samples.build_all(Path(args.out_dir)):
         print(path)
@@ -157,10 +166,6 @@ def _samples(args: argparse.Namespace) -> int:
 
 
 def _bench(args: argparse.Namespace) -> int:
-    from headless import bench
+    from headless.devtools import bench
 
-    if args.what in ("all", "scaling"):
-        from headless import bench_suite
-
-        return bench_suite.run(args) if args.what == "all" else bench_suite.run_scaling(args)
-    return bench.coverage(args) if args.what == "coverage" else bench.optimize(args)
+    return bench.main(args)

@@ -12,6 +12,8 @@ from pathlib import Path
 from typing import Any
 
 from autoscoop_blender.core.errors import InputError
+from autoscoop_blender.core.model.scene import SceneModel
+from autoscoop_blender.scene.factory import BVHFactory
 
 
 def open_blend(path: str | None) -> str:
@@ -32,17 +34,17 @@ def open_blend(path: str | None) -> str:
     return str(p)
 
 
-def load_scene(path: str | None, reach_m: float | None = None):
-    """Open a .blend and return its (SceneModel, BVHCaster); with ``reach_m`` (the
-    longest sensor range) occluders no sight line can meet are left out."""
-    from autoscoop_blender.scene.bvh import BVHCaster
+def load_scene(path: str | None, reach_m: float | None = None) -> tuple[SceneModel, BVHFactory]:
+    """Open a .blend and return its SceneModel and the factory of its BVHTree caster;
+    with ``reach_m`` (the longest sensor range) occluders no sight line can meet are
+    left out."""
     from autoscoop_blender.scene.extract import extract_scene
 
     open_blend(path)
     scene = extract_scene()
     if reach_m is not None:
         scene = scene.cropped(reach_m)
-    return scene, BVHCaster.from_scene(scene)
+    return scene, BVHFactory.of(scene)
 
 
 def json_text(data: Any) -> str:

@@ -6,64 +6,64 @@ import argparse
 import os
 import sys
 import tempfile
-import tomllib
 from dataclasses import replace
 from pathlib import Path
 
-from autoscoop_blender.core.analysis import CoverageSettings, evaluate_sensors
 from autoscoop_blender.core.errors import InputError
-from autoscoop_blender.core.optimize import OptimizationResult, OptimizationRun, OptimizeSettings
-from autoscoop_blender.core.report_png import render_png
-from autoscoop_blender.core.reports import result_dict, sensors_csv, sensors_geojson
-from autoscoop_blender.core.sensor_file import read_sensors
-from autoscoop_blender.core.sensors import PAPER_CAMERA, SensorModel
+from autoscoop_blender.core.evaluate import evaluate_layout
+from autoscoop_blender.core.result import Result
+from autoscoop_blender.core.run import Run
+from autoscoop_blender.core.settings import CoverageSettings, OptimizeSettings, flag_values
+from autoscoop_blender.io.config import load_config
+from autoscoop_blender.io.figure import render_png
+from autoscoop_blender.io.reports import (
+    POINTS_HEADER,
+    coverage_dict,
+    point_rows,
+    result_dict,
+    sensors_csv,
+    sensors_geojson,
+)
+from autoscoop_blender.io.sensor_file import read_sensors
 from headless.checkpoint import Checkpoint, scene_fingerprint
 from headless.files import csv_text, json_text, load_scene, write_files
+from headless.paths import SAMPLES
 from headless.progress import ProgressBar
-
-POINTS_HEADER = ("x", "y", "z", "n_visible", "n_covered", "best_density")
 
 
 def coverage(args: argparse.Namespace) -> int:
     """``coverage``: evaluate a sensors file on a scene, write OUT.json (+ CSV)."""
-    settings = CoverageSettings(
-        method=args.method,
-        grid_m=args.grid,
-        target_height_m=args.target_height,
-        min_density_per_m2=args.min_density,
-        oversample=args.oversample,
-        alpha=args.alpha,
-    ).validated()
+    settings = CoverageSettings(**flag_values(CoverageSettings, vars(args))).validated()
     specs = read_sensors(args.sensors)
-    scene, caster = load_scene(args.scene, max(s.model.range_m for s in specs))
-    result = evaluate_sensors(scene, caster, specs, settings)
+    scene, make_caster = load_scene(args.scene, max(s.model.range_m for s in specs))
+    result = evaluate_layout(scene, make_caster(), specs, settings)
     for w in result.warnings:
         print(f"warning: {w}", file=sys.stderr)
 
-    outputs: dict[Path, str | bytes] = {Path(args.out): json_text(result.to_dict())}
+    outputs: dict[Path, str | bytes] = {Path(args.out): json_text(coverage_dict(result))}
     if args.points_csv:
-        outputs[Path(args.points_csv)] = csv_text(POINTS_HEADER, result.point_rows())
+        outputs[Path(args.points_csv)] = csv_text(POINTS_HEADER, point_rows(result))
     write_files(outputs)
-    s = result.summary
+    m = result.metrics
     print(
-        f"coverage {s.coverage_fraction:.2%} ({s.covered_m2:.0f} of "
-        f"{result.grid.target_area_m2:.0f} m^2) by {len(specs)} sensor(s), "
-        f"{result.rays_cast} rays, {result.wall_s:.2f} s -> {args.out}"
+        f"coverage {m['coverage_fraction']:.2%} ({m['covered_m2']:.0f} of "
+        f"{m['target_area_m2']:.0f} m^2) by {len(specs)} sensor(s), "
+        f"{m['rays_cast']} rays, {m['wall_s']:.2f} s -> {args.out}"
     )
     return 0
 
 
 def optimize(args: argparse.Namespace) -> int:
-    """``optimize``: the ES on a scene; result files in the output folder."""
+    """``optimize``: place sensors on a scene; result files in the output folder."""
     settings, model = load_config(args.config)
-    overrides = {"optimizer": args.optimizer, "method": args.method, "seed": args.seed}
+    overrides = flag_values(OptimizeSettings, vars(args))
     settings = replace(settings, **{k: v for k, v in overrides.items() if v is not None})
     settings = settings.validated()
     out_dir = Path(args.out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"{out_dir}: exists and is not a folder")
 
-    scene, caster = load_scene(args.scene or default_scene(), model.range_m)
+    scene, make_caster = load_scene(args.scene or default_scene(), model.range_m)
     for w in scene.warnings:
         print(f"warning: {w}", file=sys.stderr)
     checkpoint = Checkpoint(
@@ -82,8 +82,8 @@ def optimize(args: argparse.Namespace) -> int:
     workers = default_workers() if args.workers is None else args.workers
     if workers < 1:
         raise InputError(f"--workers {workers}: must be at least 1")
-    run = OptimizationRun(
-        scene, caster, model, settings, resume, on_fixed=checkpoint.append, workers=workers
+    run = Run(
+        scene, make_caster, model, settings, resume, on_fixed=checkpoint.append, workers=workers
     )
     if resume:
         print(f"resuming after {len(resume)} fixed sensor(s)", file=sys.stderr)
@@ -123,60 +123,27 @@ def default_scene() -> str | None:
     """The file Blender opened (None: keep it), else the bundled two_routes sample."""
     import bpy
 
-    from headless.cli import SAMPLES
-
     return None if bpy.data.filepath else str(SAMPLES / "two_routes.blend")
 
 
-def load_config(path: str | None) -> tuple[OptimizeSettings, SensorModel]:
-    """Settings and sensor model from a TOML file (defaults without one).
-
-    Top-level keys are ``OptimizeSettings`` fields plus ``model`` (a preset name or a
-    table of model keys); tables ``[es]`` and ``[fitness]`` hold those parameters.
-    """
-    if path is None:
-        return OptimizeSettings(), PAPER_CAMERA
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"{path}: config file not found")
-    try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
-        raise InputError(f"{p.name}: not valid TOML ({e})") from None
-    model = SensorModel.from_spec(data.pop("model", "paper_camera"), f"{p.name}: model")
-    return OptimizeSettings.from_mapping(data, p.name).validated(), model
-
-
-def write_results(result: OptimizationResult, out_dir: Path) -> None:
+def write_results(result: Result, out_dir: Path) -> None:
     """result.json, sensors.csv, sensors.geojson, coverage.png and result.blend, all
     or none; result.blend holds the scene with the results collection."""
     import bpy
 
     from autoscoop_blender.scene.spawn import spawn_results
 
-    placement = result.placement()
     blender = {"blender": bpy.app.version_string}
     files: dict[Path, str | bytes] = {
-        out_dir / "result.json": json_text(result_dict(result, placement, blender)),
-        out_dir / "sensors.csv": sensors_csv(placement),
-        out_dir / "sensors.geojson": json_text(sensors_geojson(placement)),
-        out_dir / "coverage.png": render_png(placement),
+        out_dir / "result.json": json_text(result_dict(result, blender)),
+        out_dir / "sensors.csv": sensors_csv(result),
+        out_dir / "sensors.geojson": json_text(sensors_geojson(result)),
+        out_dir / "coverage.png": render_png(result),
     }
-    spawn_results(bpy.context.scene, placement, ground_z=world_ground(result))
+    spawn_results(bpy.context.scene, result)
     out_dir.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=out_dir) as tmp:
         blend = Path(tmp) / "result.blend"
         bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True, compress=True)
         files[out_dir / "result.blend"] = blend.read_bytes()
     write_files(files)
-
-
-def world_ground(result: OptimizationResult):
-    """Terrain height under world points (K, 2), for draping footprints."""
-
-    def ground_z(xy_world):
-        local = result.scene.to_local(xy_world)
-        z, _ = result.grid.drop(local)
-        return z + result.scene.origin[2]
-
-    return ground_z

@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 import time
 
-from autoscoop_blender.core.optimize import Progress
+from autoscoop_blender.core.optimize.base import Progress
 
 
 class ProgressBar:

@@ -17,8 +17,7 @@ from mathutils import Vector
 from mathutils.bvhtree import BVHTree
 from numpy.typing import ArrayLike, NDArray
 
-from ..core.scene_model import SceneModel
-from .rebuild import rebuild_bvh
+from ..core.model.scene import SceneModel
 
 F64 = NDArray[np.float64]
 
@@ -27,8 +26,6 @@ class BVHCaster:
     """Ray casts against the scene's occluder triangles (local metres)."""
 
     def __init__(self, vertices: F64, faces: NDArray[np.int32]) -> None:
-        self.vertices = np.asarray(vertices, dtype=float)
-        self.faces = np.asarray(faces, dtype=np.int32)
         self.n_triangles = len(faces)
         self._tree = (
             BVHTree.FromPolygons(
@@ -42,18 +39,21 @@ class BVHCaster:
         self.rays_cast = 0
         self.ground: BVHCaster = self
 
-    def __reduce__(self):
-        # A BVHTree does not pickle: worker processes rebuild it from the triangles.
-        ground = None if self.ground is self else self.ground.faces
-        return (rebuild_bvh, (self.vertices, self.faces, ground))
-
     @classmethod
     def from_scene(cls, scene: SceneModel) -> BVHCaster:
-        """The scene's caster; with overhangs, ``ground`` casts against the rest only
-        (``GroundGrid`` drops target points and masts with it)."""
-        caster = cls(scene.vertices, scene.faces)
-        if scene.ground_faces is not None:
-            caster.ground = cls(scene.vertices, scene.faces[scene.ground_faces])
+        """The scene's caster (see ``from_arrays``)."""
+        return cls.from_arrays(scene.vertices, scene.faces, scene.ground_faces)
+
+    @classmethod
+    def from_arrays(
+        cls, vertices: F64, faces: NDArray[np.int32], ground_faces: NDArray[np.bool_] | None
+    ) -> BVHCaster:
+        """A caster over the triangles; with overhangs (``ground_faces`` False for
+        them), ``ground`` casts against the rest only (``GroundGrid`` drops target
+        points and masts with it)."""
+        caster = cls(vertices, faces)
+        if ground_faces is not None:
+            caster.ground = cls(vertices, faces[ground_faces])
         return caster
 
     def _run(self, origins: F64, dirs: F64, max_dist: ArrayLike) -> list:

@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 
 from .. import names
 from ..core.errors import SceneContractError
-from ..core.scene_model import Area, SceneModel, area_from_rings, choose_origin
+from ..core.model.scene import Area, SceneModel, area_from_rings, choose_origin
 
 F64 = NDArray[np.float64]
 

@@ -1,11 +1,13 @@
 """The panel's jobs, on the same pipeline as ``python -m headless``.
 
 ``OptimizeJob`` snapshots the scene into numpy at the start (``extract_scene``, the
-BVHTree caster, ``core.optimize.OptimizationRun``), is stepped in time slices by the
-modal operator or drained by ``execute``, shows each fixed sensor as a camera in a
+BVHTree caster factory, ``core.run.Run``), is stepped in time slices by the modal
+operator or drained by ``execute``, shows each fixed sensor as a camera in a
 temporary collection while it runs, and on ``finish`` writes the results collection
-(``spawn.spawn_results``) — the same poses ``headless optimize`` finds for the same
-seed. ``cancel`` removes the temporary collection, so the scene is as it was.
+(``spawn.spawn_results``) from the run's ``Result`` - the same poses and metrics
+``headless optimize`` finds for the same seed. ``cancel`` removes the temporary
+collection, so the scene is as it was. ``evaluate_cameras`` runs
+``core.evaluate.evaluate_layout``, the function behind ``headless coverage``.
 
 Nothing here keeps a Blender ID across time slices: only names and numpy.
 """
@@ -15,7 +17,6 @@ from __future__ import annotations
 import json
 import math
 import time
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -23,18 +24,19 @@ import bpy
 import numpy as np
 
 from .. import names
-from ..core.analysis import CoverageSettings, evaluate_sensors
+from ..core.coverage.reference import reference_footprint_m2
 from ..core.errors import AutoscoopError, InputError
-from ..core.es import ESParams
-from ..core.optimize import OptimizationRun, OptimizeSettings, Progress, reference_footprint_m2
-from ..core.placement import Placement, SensorRecord
-from ..core.report_png import render_png
-from ..core.reports import result_dict, sensors_csv, sensors_geojson
-from ..core.scene_model import area_from_rings
-from ..core.sensor_file import SensorSpec
-from ..core.sensors import SensorModel
-from .bvh import BVHCaster
+from ..core.evaluate import evaluate_layout
+from ..core.model.scene import area_from_rings
+from ..core.model.sensors import SensorModel, SensorSpec
+from ..core.optimize.base import Progress
+from ..core.result import Result
+from ..core.run import Run
+from ..core.settings import PANEL_SETTINGS, CoverageSettings, OptimizeSettings, from_mapping
+from ..io.figure import render_png
+from ..io.reports import coverage_dict, result_dict, sensors_csv, sensors_geojson
 from .extract import area_role, curve_rings, extract_scene
+from .factory import BVHFactory
 from .spawn import (
     COVERAGE_COLLECTION,
     FOOTPRINTS_COLLECTION,
@@ -49,7 +51,7 @@ from .spawn import (
 LIVE_COLLECTION = "AutoSCOOP Run (in progress)"
 
 # The last layout per scene, for the export buttons (this Blender session only).
-_LAST: dict[str, tuple[Placement, dict[str, Any], str]] = {}
+_LAST: dict[str, tuple[Result, dict[str, Any], str]] = {}
 
 
 # --- settings ------------------------------------------------------------------------
@@ -61,18 +63,22 @@ def model_from(props: Any) -> SensorModel:
 
 
 def settings_from(props: Any) -> OptimizeSettings:
-    """The panel's optimizer settings, validated."""
-    es = ESParams(
-        mu=props.es_mu, lam=props.es_lam, eps=props.es_eps, max_epochs=props.es_max_epochs
-    )
-    return OptimizeSettings(
-        optimizer=props.optimizer,
-        method=props.method,
-        grid_m=props.grid_m,
-        rho=props.rho,
-        seed=props.seed,
-        es=es,
-    ).validated()
+    """The panel's optimizer settings (its knobs, the defaults for the rest), validated."""
+    data: dict[str, Any] = {}
+    for setting in PANEL_SETTINGS:
+        *groups, name = setting.path.split(".")
+        table = data
+        for group in groups:
+            table = table.setdefault(group, {})
+        table[name] = getattr(props, setting.prop_name)
+    return OptimizeSettings.from_mapping(data, "AutoSCOOP panel")
+
+
+def coverage_settings_from(props: Any) -> CoverageSettings:
+    """The panel's coverage settings (those the optimizer shares), validated."""
+    shared = {s.path for s in PANEL_SETTINGS if "." not in s.path}
+    data = {k: v for k, v in settings_from(props).to_dict().items() if k in shared}
+    return from_mapping(CoverageSettings, data, "AutoSCOOP panel").validated()
 
 
 def flat_footprint_text(props: Any) -> str:
@@ -131,8 +137,7 @@ class OptimizeJob:
         self.model = model_from(props)
         self.settings = settings_from(props)
         self.scene_model = extract_scene(context.scene).cropped(self.model.range_m)
-        caster = BVHCaster.from_scene(self.scene_model)
-        self.run = OptimizationRun(self.scene_model, caster, self.model, self.settings)
+        self.run = Run(self.scene_model, BVHFactory.of(self.scene_model), self.model, self.settings)
         self.steps = self.run.steps()
         self.progress = Progress("search", 0, 0.0, self.settings.rho, 0, 0)
         self.done = False
@@ -157,14 +162,10 @@ class OptimizeJob:
         if live is None:
             live = bpy.data.collections.new(LIVE_COLLECTION)
             scene.collection.children.link(live)
-        ox, oy, oz = (float(v) for v in self.scene_model.origin)
         for k in range(self._shown, len(self.run.sensors)):
             p = self.run.sensors[k].pose
-            rec = SensorRecord(
-                k + 1, p.x + ox, p.y + oy, p.z + oz, p.height_m, p.pitch_deg, p.yaw_deg,
-                self.model, -1, 0.0, 0, 0.0, 0.0, None,  # type: ignore[arg-type]
-            )  # fmt: skip
-            cam = sensor_camera(rec)
+            xyz = self.scene_model.to_world(p.position)
+            cam = sensor_camera(k + 1, xyz, p.pitch_deg, p.yaw_deg, self.model)
             cam[names.IGNORE_PROP] = True
             live.objects.link(cam)
         self._shown = len(self.run.sensors)
@@ -175,10 +176,9 @@ class OptimizeJob:
             self.step(math.inf)
         remove_live()
         result = self.run.result()
-        placement = result.placement()
-        spawn_results(context.scene, placement, ground_z=_ground_z(result.grid, self.scene_model))
-        doc = result_dict(result, placement, {"blender": bpy.app.version_string})
-        _remember(context.scene, placement, doc)
+        spawn_results(context.scene, result)
+        doc = result_dict(result, {"blender": bpy.app.version_string})
+        _remember(context.scene, result, doc)
         apply_result_visibility(context.scene)
         return doc
 
@@ -199,18 +199,10 @@ def remove_live() -> None:
     bpy.data.collections.remove(live)
 
 
-def _ground_z(grid: Any, scene_model: Any):
-    def ground_z(xy_world: np.ndarray) -> np.ndarray:
-        z, _ = grid.drop(scene_model.to_local(xy_world))
-        return z + scene_model.origin[2]
-
-    return ground_z
-
-
-def _remember(scene: bpy.types.Scene, placement: Placement, doc: dict[str, Any]) -> None:
+def _remember(scene: bpy.types.Scene, result: Result, doc: dict[str, Any]) -> None:
     text = json.dumps(doc)
     scene.autoscoop.result_json = text
-    _LAST[scene.name] = (placement, doc, text)
+    _LAST[scene.name] = (result, doc, text)
 
 
 # --- evaluate ------------------------------------------------------------------------
@@ -229,7 +221,8 @@ def sensor_cameras(scene: bpy.types.Scene) -> list[bpy.types.Object]:
 
 
 def camera_spec(obj: bpy.types.Object, fallback: SensorModel) -> SensorSpec:
-    """Where a camera stands and looks (world), as a sensor; its own model if it has one."""
+    """Where a camera stands and looks (world), as a sensor at the camera's own height;
+    its own model if it has one."""
     m = np.array(obj.matrix_world)
     forward = -m[:3, 2] / np.linalg.norm(m[:3, 2])
     yaw = math.degrees(math.atan2(forward[1], forward[0])) % 360.0
@@ -237,7 +230,7 @@ def camera_spec(obj: bpy.types.Object, fallback: SensorModel) -> SensorSpec:
     model = fallback
     if MODEL_PROP in obj:
         model = SensorModel.from_spec(dict(obj[MODEL_PROP]), f"{obj.name}: model")
-    return SensorSpec(model, float(m[0, 3]), float(m[1, 3]), None, pitch, yaw)
+    return SensorSpec(model, float(m[0, 3]), float(m[1, 3]), None, pitch, yaw, z=float(m[2, 3]))
 
 
 def evaluate_cameras(context: bpy.types.Context) -> dict[str, Any]:
@@ -252,45 +245,13 @@ def evaluate_cameras(context: bpy.types.Context) -> dict[str, Any]:
     fallback = model_from(props)
     specs = [camera_spec(o, fallback) for o in cams]
     scene_model = extract_scene(scene).cropped(max(s.model.range_m for s in specs))
-    caster = BVHCaster.from_scene(scene_model)
-    # The camera's own z (wherever the user moved it) sets its height over the ground.
-    specs = _with_heights(specs, cams, scene_model, caster)
-    settings = CoverageSettings(method=props.method, grid_m=props.grid_m)
-    result = evaluate_sensors(scene_model, caster, specs, settings)
-    placement = result.placement()
-    doc = result.to_dict()
-    doc["metrics"] = {
-        "coverage_fraction": doc["coverage_fraction"],
-        "sensors": len(placement.sensors),
-        "masts": len(placement.masts),
-        "cluster_ratio": round(len(placement.masts) / len(placement.sensors), 4),
-        "overlap_factor": round(
-            sum(s.covered_target_m2 for s in placement.sensors) / result.grid.target_area_m2, 4
-        ),
-        "wall_s": doc["wall_s"],
-        "rays_cast": doc["rays_cast"],
-    }
-    spawn_results(scene, placement, ground_z=_ground_z(result.grid, scene_model))
-    _remember(scene, placement, doc)
+    caster = BVHFactory.of(scene_model)()
+    result = evaluate_layout(scene_model, caster, specs, coverage_settings_from(props))
+    doc = coverage_dict(result)
+    spawn_results(scene, result)
+    _remember(scene, result, doc)
     apply_result_visibility(scene)
     return doc
-
-
-def _with_heights(specs, cams, scene_model, caster) -> list[SensorSpec]:
-    """Specs whose height is the camera's height above the top surface under it."""
-    from ..core.raycast import FloorCaster
-
-    floor = FloorCaster(caster, scene_model.floor_z())
-    _, top = scene_model.z_range()
-    out = []
-    for spec, cam in zip(specs, cams):
-        x, y = scene_model.to_local(np.array([spec.x, spec.y]))
-        origin = np.array([[x, y, top + 1.0]])
-        dist = floor.cast(origin, np.array([[0.0, 0.0, -1.0]]), top - scene_model.floor_z() + 2.0)
-        ground = top + 1.0 - float(dist[0])
-        z = cam.matrix_world.translation.z - scene_model.origin[2]
-        out.append(replace(spec, height_m=max(z - ground, 0.0)))
-    return out
 
 
 # --- results display and exports -----------------------------------------------------
@@ -312,7 +273,7 @@ def apply_result_visibility(scene: bpy.types.Scene) -> None:
         child.hide_render = not show
 
 
-def last_layout(scene: bpy.types.Scene) -> tuple[Placement, dict[str, Any]] | None:
+def last_layout(scene: bpy.types.Scene) -> tuple[Result, dict[str, Any]] | None:
     """The layout behind the scene's current result, if this session made it (an undo
     or another file leaves the scene's result and the remembered one apart)."""
     entry = _LAST.get(scene.name)
@@ -326,16 +287,16 @@ def export(scene: bpy.types.Scene, kind: str, folder: str) -> Path:
     layout = last_layout(scene)
     if layout is None:
         raise InputError("no result in this session: run Optimize or Evaluate first")
-    placement, doc = layout
+    result, doc = layout
     out = Path(bpy.path.abspath(folder or "//"))
     if not str(out).strip() or (not bpy.data.filepath and folder.startswith("//")):
         raise InputError("save the .blend file first, or choose an absolute export folder")
     out.mkdir(parents=True, exist_ok=True)
     files = {
         "JSON": ("result.json", lambda: json.dumps(doc, indent=2) + "\n"),
-        "CSV": ("sensors.csv", lambda: sensors_csv(placement)),
-        "GEOJSON": ("sensors.geojson", lambda: json.dumps(sensors_geojson(placement)) + "\n"),
-        "PNG": ("coverage.png", lambda: render_png(placement)),
+        "CSV": ("sensors.csv", lambda: sensors_csv(result)),
+        "GEOJSON": ("sensors.geojson", lambda: json.dumps(sensors_geojson(result)) + "\n"),
+        "PNG": ("coverage.png", lambda: render_png(result)),
     }
     name, make = files[kind]
     data = make()

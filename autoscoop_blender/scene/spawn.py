@@ -1,4 +1,4 @@
-"""Placement -> Blender objects: cameras, frusta, footprints, masts and a coverage map.
+"""Result -> Blender objects: cameras, frusta, footprints, masts and a coverage map.
 
 Everything goes into one collection, ``names.RESULTS_COLLECTION``, linked to the
 scene's master collection, with one child collection per group so the panel can hide
@@ -8,7 +8,7 @@ datablocks that only it used.
 
 Frames and units
 ----------------
-World metres, Z up, degrees as in ``core.sensors``: yaw counter-clockwise from +X,
+World metres, Z up, degrees as in ``core.model.sensors``: yaw counter-clockwise from +X,
 pitch = depression below the horizon, roll 0. The sensor frame's rows are
 ``frame(pitch, yaw)`` = forward, left, up. A Blender camera looks along its local -Z
 with local +Y up and +X right, so its world rotation has the columns
@@ -27,18 +27,17 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 
 import bpy
 import numpy as np
-import shapely
 from mathutils import Matrix
 from numpy.typing import NDArray
-from shapely.geometry.base import BaseGeometry
 
 from .. import names
-from ..core.placement import MastRecord, Placement, SensorRecord
-from ..core.sensors import SensorModel, frame
+from ..core.geom.drape import drape
+from ..core.model.sensors import SensorModel, frame
+from ..core.result import MastRecord, Result, SensorRecord
 
 log = logging.getLogger(__name__)
 
@@ -89,9 +88,7 @@ CAMERA_SENSOR_MM = 36.0
 # Frustum far cap: at most this many degrees between neighbouring sample directions.
 FRUSTUM_STEP_DEG = 10.0
 
-# Footprints: grid cell (m) that bounds every edge so the mesh can follow the terrain,
-# and the lift (m) above the ground that keeps it from z-fighting with the terrain.
-FOOTPRINT_CELL_M = 2.0
+# Footprints: the lift (m) above the ground that keeps them from z-fighting with it.
 FOOTPRINT_LIFT_M = 0.15
 FOOTPRINT_RGBA = (0.10, 0.80, 0.20, 0.40)
 
@@ -121,18 +118,14 @@ FRUSTUM_RGBA = (1.0, 0.6, 0.0, 1.0)
 # --- public API --------------------------------------------------------------------
 
 
-def spawn_results(
-    scene: bpy.types.Scene,
-    placement: Placement,
-    ground_z: Callable[[np.ndarray], np.ndarray] | None = None,
-) -> bpy.types.Collection:
-    """Replace the results collection with one built from ``placement``; return it.
+def spawn_results(scene: bpy.types.Scene, result: Result) -> bpy.types.Collection:
+    """Replace the results collection with one built from ``result``; return it.
 
-    ``ground_z(xy (K, 2) world m) -> z (K,) m`` gives the terrain height that the
-    footprints are draped on; when None, each footprint lies flat at its sensor's mast
-    foot (``z - height_m``). Footprints float ``FOOTPRINT_LIFT_M`` above either.
+    Footprints are the core's draped meshes (``SensorRecord.drape``); one without a
+    drape lies flat at its sensor's mast foot (``z - height_m``). Footprints float
+    ``FOOTPRINT_LIFT_M`` above the ground. Nothing here casts a ray.
     """
-    _check_placement(placement)
+    _check_result(result)
     remove_results(scene)
     results = _new_collection(names.RESULTS_COLLECTION, scene.collection.children)
     results[RESULTS_TAG] = True
@@ -141,16 +134,16 @@ def spawn_results(
     footprint_mat = _flat_material(FOOTPRINT_MATERIAL, FOOTPRINT_RGBA)
     mast_mat = _flat_material(MAST_MATERIAL, MAST_RGBA)
 
-    for rec in placement.sensors:
-        _link(groups[SENSORS_COLLECTION], sensor_camera(rec))
+    for rec in result.sensors:
+        _link(groups[SENSORS_COLLECTION], _sensor_object(rec))
         _link(groups[FRUSTA_COLLECTION], _frustum_object(rec))
-        footprint = _footprint_object(rec, ground_z, footprint_mat)
+        footprint = _footprint_object(rec, footprint_mat)
         if footprint is not None:
             _link(groups[FOOTPRINTS_COLLECTION], footprint)
-    for mast in placement.masts:
+    for mast in result.masts:
         _link(groups[MASTS_COLLECTION], _mast_object(mast, mast_mat))
-    if len(placement.points):
-        _link(groups[COVERAGE_COLLECTION], _coverage_object(placement))
+    if len(result.points):
+        _link(groups[COVERAGE_COLLECTION], _coverage_object(result))
 
     # A material nobody ended up using (e.g. every footprint empty) would be an orphan.
     for mat in (footprint_mat, mast_mat):
@@ -158,9 +151,9 @@ def spawn_results(
             bpy.data.materials.remove(mat)
     log.info(
         "spawned %d sensors, %d masts, %d coverage points into %r",
-        len(placement.sensors),
-        len(placement.masts),
-        len(placement.points),
+        len(result.sensors),
+        len(result.masts),
+        len(result.points),
         results.name,
     )
     return results
@@ -230,8 +223,11 @@ def camera_angles_deg(model: SensorModel) -> tuple[float, float]:
     return min(model.h_fov_deg, MAX_CAMERA_ANGLE_DEG), min(model.v_fov_deg, MAX_CAMERA_ANGLE_DEG)
 
 
-def sensor_camera(rec: SensorRecord) -> bpy.types.Object:
-    """A camera at the sensor looking along its forward, lens matching its FoV.
+def sensor_camera(
+    n: int, position: Iterable[float], pitch_deg: float, yaw_deg: float, model: SensorModel
+) -> bpy.types.Object:
+    """A camera at ``position`` (world m) looking along the sensor's forward, lens
+    matching the model's FoV; named and tagged as sensor ``n``.
 
     The lens and the sensor width/height are chosen so that ``angle_x`` and ``angle_y``
     both equal the (capped) FoV, the narrower side of the sensor being
@@ -239,29 +235,35 @@ def sensor_camera(rec: SensorRecord) -> bpy.types.Object:
     wider axis, which Blender keeps exact while the other follows the scene's render
     aspect (left untouched).
     """
-    name = SENSOR_NAME.format(rec.n)
+    name = SENSOR_NAME.format(n)
     cam = bpy.data.cameras.new(name)
-    h_deg, v_deg = camera_angles_deg(rec.model)
+    h_deg, v_deg = camera_angles_deg(model)
     th, tv = math.tan(math.radians(h_deg) / 2), math.tan(math.radians(v_deg) / 2)
     cam.lens = CAMERA_SENSOR_MM / (2 * min(th, tv))
     cam.sensor_width = 2 * cam.lens * th
     cam.sensor_height = 2 * cam.lens * tv
     cam.sensor_fit = "HORIZONTAL" if h_deg >= v_deg else "VERTICAL"
-    cam.clip_start = min(0.1, rec.model.range_m / 100)
-    cam.clip_end = rec.model.range_m
+    cam.clip_start = min(0.1, model.range_m / 100)
+    cam.clip_end = model.range_m
     cam.display_size = 1.5
 
     obj = bpy.data.objects.new(name, cam)
-    obj.matrix_world = _matrix(camera_rotation(rec.pitch_deg, rec.yaw_deg), (rec.x, rec.y, rec.z))
-    obj[SENSOR_PROP] = int(rec.n)
-    obj["pitch_deg"] = float(rec.pitch_deg)
-    obj["yaw_deg"] = float(rec.yaw_deg)
+    obj.matrix_world = _matrix(camera_rotation(pitch_deg, yaw_deg), position)
+    obj[SENSOR_PROP] = int(n)
+    obj["pitch_deg"] = float(pitch_deg)
+    obj["yaw_deg"] = float(yaw_deg)
+    obj[MODEL_PROP] = model.to_dict()
+    return obj
+
+
+def _sensor_object(rec: SensorRecord) -> bpy.types.Object:
+    """The camera of a placed sensor, with its figures as custom properties."""
+    obj = sensor_camera(rec.n, (rec.x, rec.y, rec.z), rec.pitch_deg, rec.yaw_deg, rec.model)
     obj["height_m"] = float(rec.height_m)
     obj["mast"] = int(rec.mast)
     obj["fitness"] = float(rec.fitness)
     obj["covered_target_m2"] = float(rec.covered_target_m2)
     obj["footprint_m2"] = float(rec.footprint_m2)
-    obj[MODEL_PROP] = rec.model.to_dict()
     return obj
 
 
@@ -350,90 +352,16 @@ def _frustum_object(rec: SensorRecord) -> bpy.types.Object:
 # --- footprints --------------------------------------------------------------------
 
 
-def triangulate_footprint(geom: BaseGeometry, cell_m: float = FOOTPRINT_CELL_M) -> tuple[F64, I32]:
-    """Triangles covering a (Multi)Polygon in world XY (m), small enough to drape.
-
-    The region is cut along a world-aligned ``cell_m`` grid, so the mesh has interior
-    vertices every ``cell_m`` and follows terrain inside, not only along the outline.
-    Cells wholly inside become two triangles; each cut cell has its edges split to at
-    most ``cell_m`` and is triangulated by shapely's constrained Delaunay
-    triangulation (holes stay holes). No triangle edge is longer than a cell's
-    diagonal. Returns vertices (V, 2) and counter-clockwise triangles (T, 3) indexing
-    them; vertices shared by neighbouring triangles are merged.
-    """
-    polys = shapely.get_parts(geom)
-    polys = polys[(shapely.get_type_id(polys) == 3) & (shapely.area(polys) > 0)]
-    if len(polys) == 0:
-        return np.zeros((0, 2)), np.zeros((0, 3), dtype=np.int32)
-    region = shapely.union_all(polys) if len(polys) > 1 else polys[0]
-
-    minx, miny, maxx, maxy = region.bounds
-    x0, y0 = math.floor(minx / cell_m) * cell_m, math.floor(miny / cell_m) * cell_m
-    nx, ny = max(1, math.ceil((maxx - x0) / cell_m)), max(1, math.ceil((maxy - y0) / cell_m))
-    gx, gy = np.meshgrid(x0 + cell_m * np.arange(nx), y0 + cell_m * np.arange(ny))
-    gx, gy = gx.ravel(), gy.ravel()
-    cells = shapely.box(gx, gy, gx + cell_m, gy + cell_m)
-
-    shapely.prepare(region)
-    inside = shapely.contains_properly(region, cells)
-    edge = shapely.intersects(region, cells) & ~inside
-    pieces = shapely.get_parts(shapely.intersection(cells[edge], region))
-    pieces = pieces[(shapely.get_type_id(pieces) == 3) & (shapely.area(pieces) > 1e-12)]
-    pieces = shapely.segmentize(pieces, cell_m)
-
-    tris = shapely.get_parts(shapely.constrained_delaunay_triangles(pieces))
-    corners = shapely.get_coordinates(tris).reshape(-1, 4, 2)[:, :3]  # rings are closed
-    # Full cells are two triangles each; no need to ask the triangulator.
-    full = np.stack([gx[inside], gy[inside]], -1)[:, None, :]
-    sq = cell_m * np.array([[[0, 0], [1, 0], [1, 1]], [[0, 0], [1, 1], [0, 1]]], float)
-    corners = np.concatenate([corners, (full[:, None] + sq[None]).reshape(-1, 3, 2)])
-
-    e1, e2 = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
-    cross = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-    corners = corners[np.abs(cross) > 1e-12]
-    flip = cross[np.abs(cross) > 1e-12] < 0
-    corners[flip] = corners[flip][:, ::-1]  # all counter-clockwise: normals up
-    if len(corners) == 0:
-        return np.zeros((0, 2)), np.zeros((0, 3), dtype=np.int32)
-
-    flat = corners.reshape(-1, 2)
-    first, inverse = _merge_points(flat)
-    return flat[first], inverse.reshape(-1, 3).astype(np.int32)
-
-
-def _merge_points(xy: F64, tol_m: float = 1e-6) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
-    """Indices of one representative per distinct point (on a ``tol_m`` lattice) and,
-    per point, the index of its representative in that list."""
-    k = np.round((xy - xy.min(axis=0)) / tol_m).astype(np.int64)
-    span = k.max(axis=0) + 1
-    if float(span[0]) * float(span[1]) < 2**62:
-        # One int64 key per point: a 1-D unique is several times faster than axis=0.
-        _, first, inverse = np.unique(k[:, 0] * span[1] + k[:, 1], True, True)
-    else:
-        _, first, inverse = np.unique(k, axis=0, return_index=True, return_inverse=True)
-    return first, inverse.reshape(-1)
-
-
-def _footprint_object(
-    rec: SensorRecord,
-    ground_z: Callable[[np.ndarray], np.ndarray] | None,
-    material: bpy.types.Material,
-) -> bpy.types.Object | None:
-    """The sensor's footprint draped on the ground, or None if it is empty."""
+def _footprint_object(rec: SensorRecord, material: bpy.types.Material) -> bpy.types.Object | None:
+    """The sensor's footprint on the ground, or None if it is empty."""
     if rec.footprint is None or rec.footprint.is_empty:
         return None
-    xy, tris = triangulate_footprint(rec.footprint)
+    foot_z = rec.z - rec.height_m
+    xyz, tris = rec.drape or drape(rec.footprint, lambda xy: np.full(len(xy), foot_z))
     if len(tris) == 0:
         return None
-    foot_z = rec.z - rec.height_m
-    if ground_z is None:
-        z = np.full(len(xy), foot_z)
-    else:
-        z = np.asarray(ground_z(xy), dtype=float).reshape(-1)
-        if z.shape != (len(xy),):
-            raise ValueError(f"ground_z returned shape {z.shape} for {len(xy)} points")
     anchor = np.array([rec.x, rec.y, foot_z])
-    verts = np.column_stack([xy, z + FOOTPRINT_LIFT_M]) - anchor
+    verts = xyz + (0.0, 0.0, FOOTPRINT_LIFT_M) - anchor
     name = FOOTPRINT_NAME.format(rec.n)
     mesh = _build_mesh(name, verts, tris.ravel(), 3)
     mesh.materials.append(material)
@@ -495,21 +423,21 @@ def coverage_colors(n_covered: NDArray[np.integer]) -> NDArray[np.float32]:
     return COVERAGE_PALETTE[np.clip(np.asarray(n_covered), 0, len(COVERAGE_PALETTE) - 1)]
 
 
-def _coverage_object(placement: Placement) -> bpy.types.Object:
+def _coverage_object(result: Result) -> bpy.types.Object:
     """One horizontal quad per target point, coloured by how many sensors cover it.
 
     Built with ``foreach_set`` on flat arrays; no per-face Python.
     """
-    pts = np.asarray(placement.points, dtype=float)
+    pts = np.asarray(result.points, dtype=float)
     n = len(pts)
     anchor = np.round(pts.mean(axis=0))
-    half = COVERAGE_QUAD_FRACTION * placement.cell_m / 2
+    half = COVERAGE_QUAD_FRACTION * result.cell_m / 2
     square = half * np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float)
     centres = pts - anchor + np.array([0.0, 0.0, COVERAGE_LIFT_M])
     verts = (centres[:, None, :] + square[None]).reshape(-1, 3)
     mesh = _build_mesh(COVERAGE_NAME, verts, np.arange(4 * n, dtype=np.int32), 4)
 
-    counts = np.asarray(placement.n_covered, dtype=np.int32)
+    counts = np.asarray(result.n_covered, dtype=np.int32)
     attr = mesh.attributes.new(COVERAGE_ATTR, "INT", "FACE")
     attr.data.foreach_set("value", counts)
     colors = mesh.color_attributes.new(COVERAGE_COLOR_ATTR, "BYTE_COLOR", "CORNER")
@@ -520,8 +448,8 @@ def _coverage_object(placement: Placement) -> bpy.types.Object:
 
     obj = bpy.data.objects.new(COVERAGE_NAME, mesh)
     obj.matrix_world = _matrix(np.eye(3), anchor)
-    obj["cell_m"] = float(placement.cell_m)
-    obj["coverage_fraction"] = placement.coverage_fraction
+    obj["cell_m"] = float(result.cell_m)
+    obj["coverage_fraction"] = result.coverage_fraction
     return obj
 
 
@@ -646,12 +574,12 @@ def _remove_unused(ids: Iterable[bpy.types.ID]) -> None:
         bpy.data.batch_remove(orphans)
 
 
-def _check_placement(placement: Placement) -> None:
-    n = len(placement.points)
-    if placement.points.shape not in ((n, 3), (0,)) or len(placement.n_covered) != n:
+def _check_result(result: Result) -> None:
+    n = len(result.points)
+    if result.points.shape not in ((n, 3), (0,)) or len(result.n_covered) != n:
         raise ValueError(
-            f"placement has points of shape {placement.points.shape} and "
-            f"{len(placement.n_covered)} n_covered values"
+            f"result has points of shape {result.points.shape} and "
+            f"{len(result.n_covered)} n_covered values"
         )
-    if n and not placement.cell_m > 0:
-        raise ValueError(f"placement cell_m {placement.cell_m} must be > 0")
+    if n and not result.cell_m > 0:
+        raise ValueError(f"result cell_m {result.cell_m} must be > 0")

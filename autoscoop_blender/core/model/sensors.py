@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .errors import InputError
+from ..errors import InputError
 
 KINDS = ("camera", "lidar", "radar")
 PATTERNS = ("angular", "pinhole")
@@ -268,6 +268,33 @@ class SensorModel:
         hit along unit directions (sensor frame ``d_sensor``, world ``d_world``) at
         distances ``dist`` (N,) m."""
         return self.rays_per_sr(d_sensor) * surface_factor(d_world, dist, normals)
+
+
+@dataclass(frozen=True)
+class SensorSpec:
+    """One sensor as a user asks for it (a sensors file, a camera in the scene).
+
+    World metres and degrees. ``height_m``: mast height above the ground under the
+    sensor; when None, ``z`` (the optical centre's absolute world height, e.g. where a
+    camera stands) sets it, and without either the sensor area's or the model's
+    mount height applies.
+    """
+
+    model: SensorModel
+    x: float
+    y: float
+    height_m: float | None
+    pitch_deg: float
+    yaw_deg: float
+    z: float | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """The sensors-file form (the model is written beside it)."""
+        out: dict[str, Any] = {"x": self.x, "y": self.y}
+        if self.height_m is not None:
+            out["height_m"] = self.height_m
+        out.update(pitch_deg=self.pitch_deg, yaw_deg=self.yaw_deg)
+        return out
 
 
 def surface_factor(

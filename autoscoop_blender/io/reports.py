@@ -1,5 +1,7 @@
-"""Report files of an optimization: result.json, sensors.csv, sensors.geojson.
+"""Report files of a result: result.json, the coverage job's JSON, sensors.csv,
+sensors.geojson and the per-point CSV.
 
+Everything is read from a ``core.result.Result``; nothing here computes coverage.
 All coordinates are the scene's world coordinates (metres). The GeoJSON carries them
 as they are: a planner's GIS assigns the proving ground's projected CRS.
 """
@@ -14,8 +16,7 @@ from typing import Any
 import numpy as np
 import shapely
 
-from .optimize import OptimizationResult
-from .placement import Placement
+from ..core.result import Result
 
 RESULT_SCHEMA = "autoscoop.result/1"
 VERSION = "0.1.0"
@@ -46,20 +47,17 @@ def versions() -> dict[str, str]:
     }
 
 
-def result_dict(
-    result: OptimizationResult,
-    placement: Placement,
-    extra_versions: dict[str, str] | None = None,
-) -> dict[str, Any]:
-    """The result.json document.
+def result_dict(result: Result, extra_versions: dict[str, str] | None = None) -> dict[str, Any]:
+    """The result.json document of an optimization.
 
     Its ``model`` and ``sensors`` keys form a valid sensors file, so
     ``headless coverage SCENE --sensors result.json`` recomputes the coverage.
     """
     settings = result.settings
+    assert result.model is not None, "an optimization has one model"
     return {
         "schema": RESULT_SCHEMA,
-        "scene": result.scene.source,
+        "scene": result.scene,
         "optimizer": settings.optimizer,
         "method": settings.method,
         "seed": settings.seed,
@@ -68,7 +66,7 @@ def result_dict(
         "versions": {**versions(), **(extra_versions or {})},
         "metrics": result.metrics,
         "stop_reason": result.stop_reason,
-        "uncovered": result.uncovered,
+        "uncovered": list(result.uncovered),
         "sensors": [
             {
                 "n": s.n,
@@ -84,7 +82,7 @@ def result_dict(
                 "target_covered_m2": s.covered_target_m2,
                 "footprint_m2": round(s.footprint_m2, 2),
             }
-            for s in placement.sensors
+            for s in result.sensors
         ],
         "masts": [
             {
@@ -95,18 +93,77 @@ def result_dict(
                 "height_m": m.height_m,
                 "sensors": list(m.sensors),
             }
-            for m in placement.masts
+            for m in result.masts
         ],
-        "origin": [float(v) for v in result.scene.origin],
+        "origin": [float(v) for v in result.origin],
     }
 
 
-def sensors_csv(placement: Placement) -> str:
+def coverage_dict(result: Result) -> dict[str, Any]:
+    """The ``headless coverage`` document (OUT.json) of an evaluated layout."""
+    m = result.metrics
+    return {
+        "scene": result.scene,
+        "method": result.settings.method,
+        "settings": result.settings.to_dict(),
+        "target_area_m2": m["target_area_m2"],
+        "target_polygon_m2": result.target_polygon_m2,
+        "target_points": len(result.points),
+        "covered_m2": m["covered_m2"],
+        "coverage_fraction": m["coverage_fraction"],
+        "sensors": [
+            {
+                "n": s.n,
+                "x": round(s.x, 4),
+                "y": round(s.y, 4),
+                "z": round(s.z, 4),
+                "height_m": s.height_m,
+                "pitch_deg": s.pitch_deg,
+                "yaw_deg": s.yaw_deg,
+                "model": s.model.to_dict(),
+                "sensor_area": s.sensor_area,
+                "covered_target_m2": s.covered_target_m2,
+                "footprint_m2": round(s.footprint_m2, 3),
+                "mast": s.mast + 1,
+                "rays_cast": s.rays,
+            }
+            for s in result.sensors
+        ],
+        "metrics": m,
+        "rays_cast": m["rays_cast"],
+        "rays": dict(result.rays),
+        "wall_s": m["wall_s"],
+        "origin": [float(v) for v in result.origin],
+        "warnings": list(result.warnings),
+    }
+
+
+POINTS_HEADER = ("x", "y", "z", "n_visible", "n_covered", "best_density")
+
+
+def point_rows(result: Result) -> list[tuple[float, float, float, int, int, float]]:
+    """One row per target point (``POINTS_HEADER``): world x, y, z, the sensors that
+    see it and that cover it, and the best density among those (points/m^2)."""
+    best = result.best_density if result.best_density is not None else np.zeros(len(result.points))
+    return [
+        (
+            round(float(x), 3),
+            round(float(y), 3),
+            round(float(z), 3),
+            int(v),
+            int(c),
+            round(float(b), 4),
+        )
+        for (x, y, z), v, c, b in zip(result.points, result.n_visible, result.n_covered, best)
+    ]
+
+
+def sensors_csv(result: Result) -> str:
     """The paper's Table III columns, one row per sensor, plus its mast (1-based)."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(SENSORS_CSV_HEADER)
-    for s in placement.sensors:
+    for s in result.sensors:
         w.writerow(
             [
                 s.n,
@@ -123,10 +180,10 @@ def sensors_csv(placement: Placement) -> str:
     return buf.getvalue()
 
 
-def sensors_geojson(placement: Placement) -> dict[str, Any]:
+def sensors_geojson(result: Result) -> dict[str, Any]:
     """Masts as points, sensor footprints as (multi)polygons, in world metres."""
     features: list[dict[str, Any]] = []
-    for m in placement.masts:
+    for m in result.masts:
         features.append(
             {
                 "type": "Feature",
@@ -139,7 +196,7 @@ def sensors_geojson(placement: Placement) -> dict[str, Any]:
                 },
             }
         )
-    for s in placement.sensors:
+    for s in result.sensors:
         if s.footprint.is_empty:
             continue
         features.append(

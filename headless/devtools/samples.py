@@ -14,7 +14,7 @@ Every scene follows the AutoSCOOP scene contract:
 All randomness comes from ``numpy.random.default_rng`` with fixed seeds, so two
 runs produce identical geometry.
 
-Run ``python headless/samples.py`` to rebuild the files into ``sample_blends/``
+Run ``python -m headless samples`` to rebuild the files into ``sample_blends/``
 next to the repository root.
 """
 
@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import math
 import pathlib
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -33,7 +32,9 @@ from scipy.interpolate import splev, splprep
 from shapely.geometry import LinearRing, LineString, Point, Polygon, box
 from shapely.ops import nearest_points, substring, unary_union
 
-SAMPLE_DIR = pathlib.Path(__file__).resolve().parent.parent / "sample_blends"
+from headless.paths import SAMPLES
+
+SAMPLE_DIR = SAMPLES
 """Default output folder: ``sample_blends/`` at the repository root."""
 
 HeightFn = Callable[[np.ndarray, np.ndarray], np.ndarray]
@@ -939,10 +940,3 @@ def build_all(out_dir: pathlib.Path) -> list[pathlib.Path]:
     out_dir = pathlib.Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     return [build(out_dir) for build in (build_flat_wall, build_two_routes, build_full_ground)]
-
-
-if __name__ == "__main__":
-    t0 = time.perf_counter()
-    for written in build_all(SAMPLE_DIR):
-        print(f"{written}  {written.stat().st_size / 1e6:.2f} MB")
-    print(f"built in {time.perf_counter() - t0:.1f} s")

@@ -7,25 +7,37 @@ one run, since shared machines are noisy.
 from __future__ import annotations
 
 import argparse
-import os
-import platform
 import time
 from datetime import date
 from pathlib import Path
 
 import numpy as np
 
-from autoscoop_blender.core.coverage import PointcloudEvaluator, TargetedEvaluator, place
-from autoscoop_blender.core.grid import GroundGrid
-from autoscoop_blender.core.scene_model import random_points
-from autoscoop_blender.core.sensors import PAPER_CAMERA, frame
+from autoscoop_blender.core.coverage.base import place
+from autoscoop_blender.core.coverage.pointcloud import PointcloudEvaluator
+from autoscoop_blender.core.coverage.targeted import TargetedEvaluator
+from autoscoop_blender.core.geom.grid import GroundGrid
+from autoscoop_blender.core.model.scene import random_points
+from autoscoop_blender.core.model.sensors import PAPER_CAMERA, frame
+from headless.devtools import suite
+from headless.devtools.machine import machine_line
 from headless.files import json_text, load_scene
+
+
+def main(args: argparse.Namespace) -> int:
+    """``bench [all|coverage|optimize|scaling]``."""
+    if args.what == "coverage":
+        return coverage(args)
+    if args.what == "optimize":
+        return optimize(args)
+    return suite.run(args) if args.what == "all" else suite.run_scaling(args)
 
 
 def coverage(args: argparse.Namespace) -> int:
     """Rays per second of the BVH caster; seconds and rays per pose for each method."""
     model = PAPER_CAMERA
-    scene, caster = load_scene(args.scene, model.range_m)
+    scene, make_caster = load_scene(args.scene, model.range_m)
+    caster = make_caster()
     t0 = time.perf_counter()
     grid = GroundGrid(scene, caster, 1.0, reach_m=model.range_m)
     grid_s = time.perf_counter() - t0
@@ -104,18 +116,12 @@ def optimize(args: argparse.Namespace) -> int:
     """The default optimization against the paper-faithful one on two_routes (wall s,
     rays, sensors, masts, coverage), into ``bench/optimize.json``; the paper-faithful
     run is read from ``--paper-dir`` (``headless optimize --method pointcloud``)."""
-    from headless.bench_suite import default_vs_paper
-
     out_dir = Path(args.out_dir)
     figures = {
         "date": date.today().isoformat(),
         "machine": machine_line(),
-        **default_vs_paper(Path(args.paper_dir), args.seed, out_dir),
+        **suite.default_vs_paper(Path(args.paper_dir), args.seed, out_dir),
     }
     out_dir.mkdir(parents=True, exist_ok=True)
     (out_dir / "optimize.json").write_text(json_text(figures))
     return 0
-
-
-def machine_line() -> str:
-    return f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}"

@@ -8,7 +8,7 @@ so rasterizing and PNG encoding are done here by hand.
 
 Frames and units
 ----------------
-World: metres, X east, Y north (the ``Placement``'s frame). Image: pixel rows top to
+World: metres, X east, Y north (the ``Result``'s frame). Image: pixel rows top to
 bottom and columns left to right, north up, the same number of pixels per metre in x
 and y. In continuous pixel coordinates ``(col, row)`` pixel ``[r, c]`` covers
 ``[c, c + 1) x [r, r + 1)``, so its centre is ``(c + 0.5, r + 0.5)``; a world point
@@ -39,7 +39,7 @@ import shapely
 from numpy.typing import NDArray
 from shapely.geometry.base import BaseGeometry
 
-from .placement import Placement
+from ..core.result import Result
 
 logger = logging.getLogger(__name__)
 
@@ -78,7 +78,7 @@ _COLLECTIONS = (4, 5, 6, 7)  # MultiPoint, MultiLineString, MultiPolygon, Geomet
 # --------------------------------------------------------------------------- public API
 
 
-def render_png(placement: Placement, width_px: int = 1200, margin_m: float = 10.0) -> bytes:
+def render_png(result: Result, width_px: int = 1200, margin_m: float = 10.0) -> bytes:
     """Top view of the layout as PNG bytes (8-bit RGB, north up, equal x/y scale).
 
     The image covers the bounding box of targets, sensor areas, non-empty footprints,
@@ -86,26 +86,22 @@ def render_png(placement: Placement, width_px: int = 1200, margin_m: float = 10.
     ``width_px`` pixels wide and as high as the box's aspect ratio gives (at least 1).
     See the module docstring for what is drawn and in which order.
     """
-    return encode_png(render_rgb(placement, width_px, margin_m))
+    return encode_png(render_rgb(result, width_px, margin_m))
 
 
-def render_rgb(
-    placement: Placement, width_px: int = 1200, margin_m: float = 10.0
-) -> NDArray[np.uint8]:
+def render_rgb(result: Result, width_px: int = 1200, margin_m: float = 10.0) -> NDArray[np.uint8]:
     """The picture ``render_png`` encodes, as an (H, W, 3) uint8 array, row 0 = north."""
     t0 = time.perf_counter()
-    n_points = len(placement.points)
-    if len(placement.n_covered) != n_points:
-        raise ValueError(
-            f"placement has {n_points} points but {len(placement.n_covered)} n_covered"
-        )
-    view = View.fit(_world_bounds(placement), width_px, margin_m)
+    n_points = len(result.points)
+    if len(result.n_covered) != n_points:
+        raise ValueError(f"result has {n_points} points but {len(result.n_covered)} n_covered")
+    view = View.fit(_world_bounds(result), width_px, margin_m)
     img = np.empty((view.height, view.width, 3), np.float32)
     img[:] = BACKGROUND
 
-    targets = [g for _, g in placement.targets]
-    areas = [g for _, g in placement.sensor_areas]
-    footprints = [s.footprint for s in placement.sensors if not s.footprint.is_empty]
+    targets = [g for _, g in result.targets]
+    areas = [g for _, g in result.sensor_areas]
+    footprints = [s.footprint for s in result.sensors if not s.footprint.is_empty]
     for geom in targets:
         fill_polygon(img, view, geom, TARGET_FILL)
     for geom in areas:
@@ -117,15 +113,15 @@ def render_rgb(
 
     n_uncovered = 0
     if n_points:  # an empty points array may come without its second axis
-        uncovered = placement.points[np.asarray(placement.n_covered) == 0]
+        uncovered = result.points[np.asarray(result.n_covered) == 0]
         n_uncovered = len(uncovered)
-        fill_cells(img, view, uncovered[:, 0], uncovered[:, 1], placement.cell_m, UNCOVERED)
+        fill_cells(img, view, uncovered[:, 0], uncovered[:, 1], result.cell_m, UNCOVERED)
 
     for geom in targets:
         stroke_polygon(img, view, geom, TARGET_EDGE, AREA_EDGE_PX)
     for geom in areas:
         stroke_polygon(img, view, geom, SENSOR_AREA_EDGE, AREA_EDGE_PX)
-    for mast in placement.masts:
+    for mast in result.masts:
         draw_disc(img, view, mast.x, mast.y, MAST_RADIUS_PX, MAST_FILL, MAST_RIM, MAST_RIM_PX)
     draw_scale_bar(img, view)
     draw_frame(img, FRAME)
@@ -234,17 +230,17 @@ def _clip(i: int, n: int) -> int:
     return min(max(i, 0), n)
 
 
-def _world_bounds(placement: Placement) -> tuple[float, float, float, float]:
+def _world_bounds(result: Result) -> tuple[float, float, float, float]:
     """(xmin, ymin, xmax, ymax) in world metres of everything drawn; all zeros if the
-    placement holds nothing."""
-    geoms = [g for _, g in placement.targets] + [g for _, g in placement.sensor_areas]
-    geoms += [s.footprint for s in placement.sensors]
+    result holds nothing."""
+    geoms = [g for _, g in result.targets] + [g for _, g in result.sensor_areas]
+    geoms += [s.footprint for s in result.sensors]
     boxes = [g.bounds for g in geoms if not g.is_empty]
-    xy = [(m.x, m.y) for m in placement.masts]
-    if len(placement.points):
-        pts = np.asarray(placement.points)[:, :2]
+    xy = [(m.x, m.y) for m in result.masts]
+    if len(result.points):
+        pts = np.asarray(result.points)[:, :2]
         # Half a cell each way: the uncovered cells are drawn as squares of cell_m.
-        half = placement.cell_m / 2
+        half = result.cell_m / 2
         boxes.append((*(pts.min(axis=0) - half), *(pts.max(axis=0) + half)))
     boxes += [(x, y, x, y) for x, y in xy]
     if not boxes:

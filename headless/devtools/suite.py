@@ -38,22 +38,20 @@ import numpy as np
 import shapely
 from scipy.spatial import cKDTree
 
-from autoscoop_blender.core.cached import CachedTargetedEvaluator
-from autoscoop_blender.core.coverage import (
-    PointcloudEvaluator,
-    TargetedEvaluator,
-    auto_oversample,
-    footprint_polygon,
-    place,
-)
-from autoscoop_blender.core.fitness import FitnessParams
-from autoscoop_blender.core.grid import GroundGrid
-from autoscoop_blender.core.optimize import OptimizationRun, OptimizeSettings
-from autoscoop_blender.core.scene_model import SceneModel, random_points
-from autoscoop_blender.core.sensors import PAPER_CAMERA, SensorPose
-from headless.bench import machine_line
-from headless.cli import SAMPLES
+from autoscoop_blender.core.coverage.base import footprint_polygon, place
+from autoscoop_blender.core.coverage.cached import CachedTargetedEvaluator
+from autoscoop_blender.core.coverage.pointcloud import PointcloudEvaluator, auto_oversample
+from autoscoop_blender.core.coverage.targeted import TargetedEvaluator
+from autoscoop_blender.core.evaluate import evaluate_layout
+from autoscoop_blender.core.geom.grid import GroundGrid
+from autoscoop_blender.core.model.scene import SceneModel, random_points
+from autoscoop_blender.core.model.sensors import PAPER_CAMERA, SensorPose
+from autoscoop_blender.core.run import Run
+from autoscoop_blender.core.settings import CoverageSettings, FitnessParams, OptimizeSettings
+from autoscoop_blender.io.sensor_file import parse_sensors
+from headless.devtools.machine import machine_line
 from headless.files import json_text, load_scene
+from headless.paths import SAMPLES
 
 REFERENCE_GRID_M = 0.25
 BAND_M = FitnessParams().band_m
@@ -107,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
     results["default_vs_paper"] = default_vs_paper(Path(args.paper_dir), args.seed, out)
     (out / "results.json").write_text(json_text(results))
 
-    from headless.charts import optimize_chart, speed_accuracy_chart
+    from headless.devtools.charts import optimize_chart, speed_accuracy_chart
 
     speed_accuracy_chart(results, out / "speed_accuracy.png")
     optimize_chart(results, out / "optimize.png")
@@ -151,10 +149,10 @@ def reference_check() -> dict[str, float]:
     """The reference's hidden area behind flat_wall's wall against the analytic one."""
     import bpy
 
-    from autoscoop_blender.scene.bvh import BVHCaster
     from autoscoop_blender.scene.extract import extract_scene
+    from autoscoop_blender.scene.factory import BVHFactory
+    from headless.devtools.samples import FLAT_WALL_BOX
     from headless.files import open_blend
-    from headless.samples import FLAT_WALL_BOX
 
     open_blend(str(SAMPLES / "flat_wall.blend"))
     model = replace(MODEL, min_density_per_m2=0.0)
@@ -162,7 +160,7 @@ def reference_check() -> dict[str, float]:
     for ignore in (False, True):
         bpy.data.objects["Wall"]["autoscoop_ignore"] = ignore
         scene = extract_scene()
-        caster = BVHCaster.from_scene(scene)
+        caster = BVHFactory.of(scene)()
         grid = GroundGrid(scene, caster, REFERENCE_GRID_M, reach_m=model.range_m)
         pose = place(grid, -8.0, 0.0, 7.0, 40.0, 0.0)
         seen.append(
@@ -215,12 +213,13 @@ def _at(
 
 def speed_accuracy(path: Path, plan: Plan, seed: int) -> list[dict[str, Any]]:
     """One row per (series, knob value): seconds per pose and both errors (mean)."""
-    from autoscoop_blender.scene.bvh import BVHCaster
+    from autoscoop_blender.scene.factory import BVHFactory
 
     print(f"speed/accuracy on {path.name} ({plan.poses} poses)")
-    full_scene, full_caster = load_scene(str(path))
+    full_scene, make_full = load_scene(str(path))
+    full_caster = make_full()
     scene = full_scene.cropped(MODEL.range_m)
-    caster = BVHCaster.from_scene(scene)
+    caster = BVHFactory.of(scene)()
     ref_grid = GroundGrid(full_scene, full_caster, REFERENCE_GRID_M, reach_m=MODEL.range_m)
     rng = np.random.default_rng(seed)
     poses = _poses(scene, ref_grid, plan.poses, rng)
@@ -321,20 +320,20 @@ def speed_accuracy(path: Path, plan: Plan, seed: int) -> list[dict[str, Any]]:
     return rows
 
 
+def verdicts_at(points_xy: np.ndarray, covered: np.ndarray, query_xy: np.ndarray) -> np.ndarray:
+    """(R,) a method's verdict at each query point (R, 2): that of the method's target
+    point nearest to it. On the method's lattice that is the point of the cell holding
+    the query, or, along the target's edge where that cell's centre falls outside the
+    target, the neighbouring one. points_xy (N, 2), covered (N,) bool."""
+    _, nearest = cKDTree(points_xy).query(query_xy)
+    return covered[nearest]
+
+
 def _cell_verdicts(grid: GroundGrid, covered: np.ndarray, ref: GroundGrid) -> np.ndarray:
-    """(R,) the method's verdict at each reference point: that of the method's target
-    point nearest to it (its own cell's, or, along the target's edge where that cell's
-    centre falls outside the target, the neighbouring one's)."""
+    """``verdicts_at`` for target ordinals ``covered`` of ``grid``, at ``ref``'s points."""
     mask = np.zeros(grid.n_targets, dtype=bool)
     mask[covered] = True
-    xy = ref.target_xy
-    i = np.floor((xy[:, 0] - grid.x0) / grid.spacing).astype(np.int64)
-    j = np.floor((xy[:, 1] - grid.y0) / grid.spacing).astype(np.int64)
-    ordinal = grid.target_ordinal(i * grid.ny + j).astype(np.int64)
-    edge = ordinal < 0
-    if edge.any():
-        _, ordinal[edge] = cKDTree(grid.target_xy).query(xy[edge])
-    return mask[ordinal]
+    return verdicts_at(grid.target_xy, mask, ref.target_xy)
 
 
 def _time(evaluate, poses: list[SensorPose]) -> float:
@@ -374,14 +373,14 @@ CONFIGS = {
 def optimize_runs(plan: Plan, seed: int) -> list[dict[str, Any]]:
     """Whole optimizations on two_routes: the default over ``plan.seeds`` seeds, the
     other configurations over a third as many."""
-    scene, caster = load_scene(str(SAMPLES / "two_routes.blend"), MODEL.range_m)
+    scene, make_caster = load_scene(str(SAMPLES / "two_routes.blend"), MODEL.range_m)
     rows = []
     for name, settings in CONFIGS.items():
         # The default over every seed of the plan; the others over a third as many.
         count = plan.seeds if name == "default" else max(1, plan.seeds // 3)
         seeds = range(seed, seed + count)
         for s in seeds:
-            res = OptimizationRun(scene, caster, MODEL, replace(settings, seed=s)).result()
+            res = Run(scene, make_caster, MODEL, replace(settings, seed=s)).result()
             m = res.metrics
             rows.append(
                 {
@@ -476,10 +475,9 @@ def _scaling_run(tiles: tuple[int, ...], seed: int, label: str) -> dict[str, Any
 
 
 def _scaling_point(tiles: tuple[int, ...], seed: int) -> dict[str, Any]:
-    from autoscoop_blender.scene.rebuild import forget_blender_script_paths
+    from autoscoop_blender.scene.factory import BVHFactory, forget_blender_script_paths
 
     forget_blender_script_paths()  # a spawned child: the pip bpy must win
-    from autoscoop_blender.scene.bvh import BVHCaster
 
     if hasattr(os, "sched_setaffinity"):  # every run on the same core (see ``scaling``)
         os.sched_setaffinity(0, {max(os.sched_getaffinity(0))})
@@ -490,9 +488,8 @@ def _scaling_point(tiles: tuple[int, ...], seed: int) -> dict[str, Any]:
         targets=tuple(a for a in scene.targets if any(k in a.name for k in keep)),
         sensor_areas=tuple(a for a in scene.sensor_areas if any(k in a.name for k in keep)),
     ).cropped(MODEL.range_m)
-    caster = BVHCaster.from_scene(part)
     cpu = time.process_time()
-    res = OptimizationRun(part, caster, MODEL, OptimizeSettings(seed=seed)).result()
+    res = Run(part, BVHFactory.of(part), MODEL, OptimizeSettings(seed=seed)).result()
     cpu = time.process_time() - cpu
     m = res.metrics
     return {
@@ -569,9 +566,6 @@ def default_vs_paper(paper_dir: Path, seed: int, out_dir: Path) -> dict[str, Any
     import subprocess
     import sys
 
-    from autoscoop_blender.core.analysis import CoverageSettings, evaluate_sensors
-    from autoscoop_blender.core.sensor_file import parse_sensors
-
     where = out_dir / "default_targeted"
     cmd = [
         sys.executable,
@@ -586,21 +580,20 @@ def default_vs_paper(paper_dir: Path, seed: int, out_dir: Path) -> dict[str, Any
     subprocess.run(cmd, check=True, capture_output=True)
     doc = json.loads((where / "result.json").read_text())
     specs = parse_sensors(doc, "result.json")
-    scene, caster = load_scene(str(SAMPLES / "two_routes.blend"), MODEL.range_m)
-    claimed = evaluate_sensors(scene, caster, specs, CoverageSettings())
-    full_scene, full_caster = load_scene(str(SAMPLES / "two_routes.blend"))
+    scene, make_caster = load_scene(str(SAMPLES / "two_routes.blend"), MODEL.range_m)
+    claimed = evaluate_layout(scene, make_caster(), specs, CoverageSettings())
+    full_scene, make_full = load_scene(str(SAMPLES / "two_routes.blend"))
+    full_caster = make_full()
 
     def reference_of(sensors):
         """The reference's coverage of a layout: (result, (R,) covered mask)."""
-        ref = evaluate_sensors(
+        ref = evaluate_layout(
             full_scene, full_caster, sensors, CoverageSettings(grid_m=REFERENCE_GRID_M)
         )
-        return ref, ref.summary.n_covered > 0
+        return ref, ref.n_covered > 0
 
     reference, ref_mask = reference_of(specs)
-    mine = _cell_verdicts(
-        claimed.grid, np.flatnonzero(claimed.summary.n_covered > 0), reference.grid
-    )
+    mine = verdicts_at(claimed.points[:, :2], claimed.n_covered > 0, reference.points[:, :2])
     m = doc["metrics"]
     out: dict[str, Any] = {
         "default_wall_s": m["wall_s"],

@@ -28,18 +28,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .coverage import (
-    SensorCoverage,
-    SightLines,
-    TargetedEvaluator,
-    _cells_in_reach,
-    clear_sight,
-    sight_lines,
-    view,
-)
-from .grid import GroundGrid
-from .raycast import RayCaster
-from .sensors import SensorModel, SensorPose, frame
+from ..geom.grid import GroundGrid
+from ..geom.raycast import RayCaster
+from ..model.sensors import SensorModel, SensorPose, frame
+from .base import SensorCoverage, SightLines, cells_in_reach, clear_sight, sight_lines, view
+from .targeted import TargetedEvaluator
 
 I64 = NDArray[np.int64]
 
@@ -192,7 +185,7 @@ class CachedTargetedEvaluator:
     def _compute(
         self, model: SensorModel, s: NDArray[np.float64], outside_band_m: float | None
     ) -> _Reach:
-        cells, ordinal = _cells_in_reach(self.grid, s, model.range_m, outside_band_m)
+        cells, ordinal = cells_in_reach(self.grid, s, model.range_m, outside_band_m)
         lines = sight_lines(self.grid, s, cells)
         # Could any allowed orientation cover the point? In range, dense enough at
         # the pattern's densest direction, within the reachable depression band.

@@ -13,31 +13,11 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .errors import InputError
-from .sensors import SensorModel
-
-
-@dataclass(frozen=True)
-class SensorSpec:
-    """One sensor as the user asked for it: world x, y (m), optional height, angles."""
-
-    model: SensorModel
-    x: float
-    y: float
-    height_m: float | None
-    pitch_deg: float
-    yaw_deg: float
-
-    def to_dict(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"x": self.x, "y": self.y}
-        if self.height_m is not None:
-            out["height_m"] = self.height_m
-        out.update(pitch_deg=self.pitch_deg, yaw_deg=self.yaw_deg)
-        return out
+from ..core.errors import InputError
+from ..core.model.sensors import SensorModel, SensorSpec
 
 
 def read_sensors(path: str | Path) -> list[SensorSpec]:

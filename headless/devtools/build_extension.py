@@ -64,8 +64,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from autoscoop_blender.core.errors import AutoscoopError
+from headless.paths import REPO
 
-REPO = Path(__file__).resolve().parent.parent
 SOURCE = REPO / "autoscoop_blender"
 MANIFEST = REPO / "blender_manifest.toml"
 REQUIREMENTS = REPO / "requirements.txt"

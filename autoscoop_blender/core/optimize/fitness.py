@@ -45,32 +45,14 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from .coverage import SensorCoverage
-from .grid import GroundGrid
+from ..coverage.base import SensorCoverage
+from ..geom.grid import GroundGrid
+from ..settings import TAU_FLOOR, FitnessParams
 
 F64 = NDArray[np.float64]
 
-# tau below this is treated as zero (see ``FitnessParams.band_m``).
-TAU_FLOOR = 0.05
 # Eq. 3 and 4 count fixed sensors within this many theta: exp(-6^2 / 2) = 1.5e-8.
 CLOSENESS_CUTOFF = 6.0
-
-
-@dataclass(frozen=True)
-class FitnessParams:
-    """Weights and constants of Eq. 1-5 (Table II weights by default)."""
-
-    w_ca: float = 1.0
-    w_ds: float = 0.5
-    w_sc: float = 2.5
-    zeta: float = 0.02
-    theta_tau_m: float = 2.0
-    theta_m: float = 20.0
-
-    @property
-    def band_m(self) -> float:
-        """Outside cells farther than this from the targets have tau < TAU_FLOOR."""
-        return self.theta_tau_m * math.sqrt(2.0 * math.log(1.0 / TAU_FLOOR))
 
 
 @dataclass

@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 from shapely.geometry import LinearRing, MultiPolygon, Polygon
 from shapely.geometry.base import BaseGeometry
 
-from .errors import SceneContractError
+from ..errors import SceneContractError
 
 # A ring is "in the XY plane" when its best-fit plane tilts at most this much.
 MAX_RING_TILT_DEG = 45.0

@@ -1,0 +1,111 @@
+"""The candidate set: positions x orientations x models, and what each covers.
+
+Every mast position of the problem's lattice times a grid of orientations (yaw every
+``yaw_step_deg``, pitch at ``pitches`` values spread over each model's limits) is a
+candidate. What each covers comes from the problem's exact cached ``targeted`` probe:
+one numpy pass over all orientations per position, each sight ray cast once and only
+if some orientation needs it. The result is a sparse matrix, rows = candidates,
+columns = target points, 1 where the candidate covers the point; candidates that
+cover nothing are left out. It is what set-cover optimizers work on: greedy today,
+bounds and exact methods next.
+
+The covered sets are bit-identical to ``targeted`` for the same poses, so a fixed
+candidate's coverage is exactly what any later evaluation reports.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Generator
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import sparse
+
+from .model.sensors import SensorModel, SensorPose, frame
+from .problem import Problem
+
+F64 = NDArray[np.float64]
+I64 = NDArray[np.int64]
+
+# Positions between two progress reports while a candidate set is built.
+POSITIONS_PER_REPORT = 16
+
+
+def orientations(
+    pitch_min: float, pitch_max: float, yaw_step_deg: float = 10.0, pitches: int = 6
+) -> F64:
+    """(O, 2) (pitch, yaw) degrees: yaw in steps from 0, pitch evenly over the limits."""
+    yaws = np.arange(0.0, 360.0, yaw_step_deg)
+    ps = np.linspace(pitch_min, pitch_max, pitches) if pitch_max > pitch_min else [pitch_min]
+    return np.array([(p, y) for p in ps for y in yaws])
+
+
+@dataclass(frozen=True)
+class CandidateSet:
+    """Candidates and the target points each covers.
+
+    positions: (K, 2) local metres (the problem's lattice); angles: per model, (O_m, 2)
+    (pitch, yaw) degrees; models: the sensor models. Per candidate c (C in all):
+    position[c], orientation[c] (a row of ``angles[model[c]]``), model[c]; matrix:
+    (C, N) CSR float32, 1 where candidate c covers target point n.
+    """
+
+    positions: F64
+    angles: tuple[F64, ...]
+    models: tuple[SensorModel, ...]
+    position: I64
+    orientation: I64
+    model: I64
+    matrix: sparse.csr_matrix
+
+    def __len__(self) -> int:
+        return len(self.position)
+
+    def pose(self, problem: Problem, c: int) -> SensorPose:
+        """Candidate ``c`` as a pose on its mast."""
+        x, y = self.positions[self.position[c]]
+        pitch, yaw = self.angles[self.model[c]][self.orientation[c]]
+        return problem.pose(x, y, pitch, yaw)
+
+
+def build_candidates(problem: Problem) -> Generator[int, None, CandidateSet]:
+    """The problem's candidate set (see the module docstring); yields the number of
+    positions done every ``POSITIONS_PER_REPORT`` positions."""
+    models = (problem.model,)
+    positions = problem.space.positions
+    angles = tuple(orientations(m.pitch_min_deg, m.pitch_max_deg) for m in models)
+    cols: list[I64] = []
+    cand_pos: list[int] = []
+    cand_ori: list[int] = []
+    cand_model: list[int] = []
+    for m, (model, ang) in enumerate(zip(models, angles)):
+        rots = np.array([frame(p, y) for p, y in ang])
+        for i, (x, y) in enumerate(positions):
+            pose = problem.pose(x, y, ang[0, 0], ang[0, 1])
+            covered, ordinal = problem.probe.cover_many(model, pose, rots)
+            for o in np.flatnonzero(covered.any(axis=1)):
+                cols.append(ordinal[covered[o]])
+                cand_pos.append(i)
+                cand_ori.append(int(o))
+                cand_model.append(m)
+            if i % POSITIONS_PER_REPORT == 0:
+                yield i
+    counts = [len(c) for c in cols]
+    matrix = sparse.csr_matrix(
+        (
+            np.ones(sum(counts), dtype=np.float32),
+            np.concatenate(cols) if cols else np.zeros(0, dtype=np.int64),
+            np.cumsum([0, *counts]),
+        ),
+        shape=(len(cols), problem.n_targets),
+    )
+    return CandidateSet(
+        positions=positions,
+        angles=angles,
+        models=models,
+        position=np.array(cand_pos, dtype=np.int64),
+        orientation=np.array(cand_ori, dtype=np.int64),
+        model=np.array(cand_model, dtype=np.int64),
+        matrix=matrix,
+    )

@@ -1,0 +1,1 @@
+"""Coverage of sensor poses: which target points each covers, by three methods."""

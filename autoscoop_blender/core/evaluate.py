@@ -1,0 +1,84 @@
+"""Coverage of a given set of sensors on a scene: ``headless coverage`` and the panel's
+Evaluate.
+
+It runs the same stages as an optimization without the optimizer: the ground grid,
+the evaluator of the chosen method, one full evaluation per sensor, masts for
+sensors that stand together (shown, not moved), and ``result.finish_layout``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from .coverage.base import place
+from .coverage.evaluator import make_evaluator
+from .geom.grid import GroundGrid
+from .geom.raycast import RayCaster, inside_solid
+from .masts import group_positions
+from .model.scene import SceneModel
+from .model.sensors import SensorModel, SensorSpec
+from .result import Provenance, Result, area_at, finish_layout
+from .settings import CoverageSettings
+
+
+def resolve_model(spec: SensorSpec, settings: CoverageSettings) -> SensorModel:
+    """The spec's model with the settings' threshold override applied."""
+    if settings.min_density_per_m2 is None:
+        return spec.model
+    return replace(spec.model, min_density_per_m2=settings.min_density_per_m2)
+
+
+def evaluate_layout(
+    scene: SceneModel,
+    caster: RayCaster,
+    specs: list[SensorSpec],
+    settings: CoverageSettings,
+) -> Result:
+    """Coverage of each sensor and of their union, with footprints and visibility.
+
+    specs: world metres (see ``SensorSpec`` for how each height is found). Warnings
+    (in ``Result.warnings``): a sensor outside every sensor area, or inside an occluder.
+    """
+    settings = settings.validated()
+    t0 = time.perf_counter()
+    warnings = list(scene.warnings)
+    reach = max(s.model.range_m for s in specs)
+    grid = GroundGrid(scene, caster, settings.grid_m, settings.target_height_m, reach)
+    evaluator = make_evaluator(settings, grid, caster)
+    if settings.method == "pointcloud" and settings.target_height_m > 0:
+        warnings.append(
+            "pointcloud: the point cloud lies on surfaces; --target-height applies to targeted only"
+        )
+
+    coverages = []
+    for k, spec in enumerate(specs, start=1):
+        x, y = (float(v) for v in scene.to_local(np.array([spec.x, spec.y])))
+        area = area_at(scene, x, y)
+        if area is None:
+            warnings.append(
+                f"sensor {k} at ({spec.x:g}, {spec.y:g}) stands outside every sensor area"
+            )
+        model = resolve_model(spec, settings)
+        height = spec.height_m
+        if height is None and spec.z is not None:
+            ground = float(grid.ground_z(np.array([[x, y]]))[0])
+            height = max(spec.z - scene.origin[2] - ground, 0.0)
+        if height is None and area is not None:
+            height = area.height_m
+        if height is None:
+            height = model.mount_height_m
+        pose = place(grid, x, y, height, spec.pitch_deg, spec.yaw_deg)
+        if inside_solid(caster, pose.position)[0]:
+            warnings.append(
+                f"sensor {k} at ({spec.x:g}, {spec.y:g}) stands inside an occluder "
+                "(or under the ground): it sees nothing"
+            )
+        coverages.append(evaluator.evaluate(model, pose, outside_band_m=math.inf, visibility=True))
+    xy = np.array([[c.pose.x, c.pose.y] for c in coverages]).reshape(-1, 2)
+    mast_of = [int(v) for v in group_positions(xy, settings.mast_join_m)]
+    how = Provenance(t0=t0, warnings=tuple(warnings), settings=settings)
+    return finish_layout(scene, grid, coverages, mast_of, how)

@@ -1,0 +1,1 @@
+"""Geometry: ray casting, the ground grid, alpha shapes, draped footprints."""

@@ -1,0 +1,1 @@
+"""Optimizers: strategies that place sensors on a ``Problem`` (see ``base.py``)."""

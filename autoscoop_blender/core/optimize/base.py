@@ -1,0 +1,120 @@
+"""What every optimizer shares: the protocol, its progress reports and its solution.
+
+An optimizer is a strategy: ``solve(problem, solution)`` is a generator that places
+sensors on a ``Problem``, starting from ``solution`` (empty, or the sensors of an
+interrupted run), yields a ``Progress`` after each small unit of work (so that the
+Blender operator can time-slice it and the CLI can draw a bar), and returns the
+solution. It reads the problem's public interface only; its own state (the ES's
+random generator and parents, greedy's gains) stays inside it, except what a resumed
+run needs, which it leaves in ``Solution.state`` at every fixed sensor.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Generator
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..model.sensors import SensorPose
+from ..problem import Problem
+
+
+@dataclass(frozen=True)
+class FixedSensor:
+    """A sensor an optimizer fixed: its pose (local metres, degrees), its fitness (the
+    ES's f_s; greedy: the points it added), the ES epochs and evaluations it took,
+    and the target ordinals it newly covered when it was fixed."""
+
+    pose: SensorPose
+    fitness: float
+    epochs: int
+    evaluations: int
+    newly: NDArray[np.int64]
+
+    @property
+    def new_points(self) -> int:
+        return len(self.newly)
+
+
+@dataclass(frozen=True)
+class Progress:
+    """Where a run is: for progress bars, status lines and the modal operator.
+
+    fixed: the sensor just fixed (phase "fixed"), else None.
+    """
+
+    phase: str  # "search" | "fixed" | "masts" | "report" | "done"
+    sensors: int
+    coverage: float
+    rho: float
+    epoch: int
+    evaluations: int
+    fixed: FixedSensor | None = None
+
+    @property
+    def fraction(self) -> float:
+        """Progress towards the goal in [0, 1]."""
+        return 1.0 if self.phase == "done" else min(1.0, self.coverage / self.rho)
+
+
+@dataclass
+class Solution:
+    """Sensors fixed so far, in order, and the target points they cover.
+
+    covered: (N,) bool over the grid's target points. evaluations, sight_rays: what
+    the optimizer spent (pose evaluations, sight rays cast by them). state: what the
+    optimizer needs to go on after the last sensor exactly as it would have (the ES:
+    its random generator's state); JSON-ready, written to checkpoints.
+    """
+
+    covered: NDArray[np.bool_]
+    sensors: list[FixedSensor] = field(default_factory=list)
+    stop_reason: str = ""
+    evaluations: int = 0
+    sight_rays: int = 0
+    state: dict[str, Any] = field(default_factory=dict)
+    n_covered: int = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.n_covered = int(np.count_nonzero(self.covered))
+
+    @property
+    def coverage(self) -> float:
+        """Covered fraction of the target points."""
+        return self.n_covered / max(len(self.covered), 1)
+
+    def fix(self, sensor: FixedSensor) -> None:
+        """Add ``sensor``; its ``newly`` must be points not covered before."""
+        self.sensors.append(sensor)
+        self.covered[sensor.newly] = True
+        self.n_covered += sensor.new_points
+
+    def progress(
+        self, phase: str, rho: float, epoch: int = 0, fixed: FixedSensor | None = None
+    ) -> Progress:
+        return Progress(
+            phase, len(self.sensors), self.coverage, rho, epoch, self.evaluations, fixed
+        )
+
+
+class Optimizer(Protocol):
+    """A strategy that places sensors (see the module docstring)."""
+
+    name: str
+
+    def solve(self, problem: Problem, solution: Solution) -> Generator[Progress, None, Solution]:
+        """Place sensors until the problem's goal or a stop rule; yields progress,
+        returns ``solution`` with its sensors and ``stop_reason`` set."""
+        ...
+
+    def close(self) -> None:
+        """Release what the optimizer holds (worker processes); safe to call twice."""
+        ...
+
+
+def newly_covered(covered: NDArray[np.bool_], ordinals: NDArray[np.int64]) -> NDArray[np.int64]:
+    """The ``ordinals`` (target points a pose covers) not in ``covered`` yet."""
+    return ordinals[~covered[ordinals]]

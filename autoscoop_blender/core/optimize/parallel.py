@@ -1,0 +1,103 @@
+"""Worker processes that score ES populations: built from arrays, not from a run.
+
+Each worker gets the problem's grid as arrays (``Problem.worker_inputs``), the model,
+the settings and a caster factory (a picklable callable that builds the ray caster in
+the worker, since a BVHTree does not pickle). It rebuilds the grid and the coverage
+evaluator from them, keeps the fitness state of the sensors fixed so far, and scores
+poses the main process has already placed on the ground. Scoring is exact, so the
+answer is the same with 1 or N workers.
+
+One executor per worker, so the main process knows which worker holds which fixed
+sensors: each is sent only the sensors fixed since its last chunk.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+from collections.abc import Callable, Sequence
+from concurrent.futures import Future, ProcessPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..coverage.evaluator import Evaluator, make_evaluator
+from ..geom.grid import GroundGrid
+from ..geom.raycast import RayCaster
+from ..model.sensors import SensorModel, SensorPose
+from ..problem import WorkerInputs
+from ..settings import FitnessParams
+from .fitness import FixedSensors, fitness
+
+# A fixed sensor as workers are told of it: the target ordinals it newly covered and
+# its mast position (local x, y).
+FixedMark = tuple[NDArray[np.int64], tuple[float, float]]
+
+
+@dataclass
+class _Worker:
+    """A worker process's state: its grid, evaluator and the fitness state."""
+
+    grid: GroundGrid
+    evaluator: Evaluator
+    model: SensorModel
+    params: FitnessParams
+    fixed: FixedSensors
+
+
+_WORKER: _Worker | None = None
+
+
+def _start(inputs: WorkerInputs, make_caster: Callable[[], RayCaster]) -> None:
+    global _WORKER
+    caster = make_caster()
+    grid = GroundGrid.from_arrays(inputs.grid, caster)
+    evaluator = make_evaluator(inputs.settings, grid, caster, inputs.settings.cache)
+    fixed = FixedSensors(np.zeros(grid.n_targets, dtype=bool))
+    _WORKER = _Worker(grid, evaluator, inputs.model, inputs.settings.fitness, fixed)
+
+
+def _score(poses: Sequence[SensorPose], fixed_since: list[FixedMark]) -> tuple[list[float], int]:
+    """f_s of each pose once the sensors fixed since the last chunk are marked; and
+    the sight rays cast."""
+    w = _WORKER
+    assert w is not None
+    for newly, position in fixed_since:
+        w.fixed.mark(newly, position)
+    fits, rays = [], 0
+    for pose in poses:
+        cov = w.evaluator.evaluate(w.model, pose, outside_band_m=w.params.band_m)
+        rays += cov.rays
+        fits.append(fitness(w.grid, cov, w.fixed, w.params).f_s)
+    return fits, rays
+
+
+class WorkerPool:
+    """``workers`` processes (spawned: a forked Blender is not safe) that score poses."""
+
+    def __init__(
+        self, inputs: WorkerInputs, make_caster: Callable[[], RayCaster], workers: int
+    ) -> None:
+        spawn = multiprocessing.get_context("spawn")
+        self.executors = [
+            ProcessPoolExecutor(
+                max_workers=1, mp_context=spawn, initializer=_start, initargs=(inputs, make_caster)
+            )
+            for _ in range(workers)
+        ]
+        self.synced = [0] * workers  # entries of the fixed log each worker has been sent
+
+    @property
+    def workers(self) -> int:
+        return len(self.executors)
+
+    def submit(self, k: int, poses: Sequence[SensorPose], fixed_log: list[FixedMark]) -> Future:
+        """Score ``poses`` on worker ``k``, first bringing its fixed sensors up to date;
+        the future gives (fitness per pose, sight rays cast)."""
+        since = fixed_log[self.synced[k] :]
+        self.synced[k] = len(fixed_log)
+        return self.executors[k].submit(_score, list(poses), since)
+
+    def shutdown(self) -> None:
+        for executor in self.executors:
+            executor.shutdown(cancel_futures=True)

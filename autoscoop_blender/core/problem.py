@@ -1,0 +1,199 @@
+"""The optimization problem, built once and shared by every optimizer.
+
+A ``Problem`` holds what an optimizer draws from and nothing of any optimizer's own
+state: the ground grid with its target points, the coverage evaluator of the chosen
+method (and the exact cached ``targeted`` probe beside it, for candidate sets and
+reachability), the search space of mast positions and orientations, and the demand
+(how many target points make the goal). Poses are placed on the ground here, in one
+place, so that every optimizer and every later stage stands masts the same way.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+import shapely
+from numpy.typing import NDArray
+from shapely.geometry.base import BaseGeometry
+
+from .coverage.base import SensorCoverage
+from .coverage.cached import CachedTargetedEvaluator
+from .coverage.evaluator import Evaluator, make_evaluator
+from .geom.grid import GridArrays, GroundGrid
+from .geom.raycast import RayCaster
+from .model.scene import SceneModel
+from .model.sensors import SensorModel, SensorPose
+from .settings import OptimizeSettings
+
+F64 = NDArray[np.float64]
+
+
+class SearchSpace:
+    """Where a sensor may stand and how it may point.
+
+    positions: (K, 2) the lattice points (spacing ``step_m``) inside the sensor areas
+    (local metres), plus one point for any area too small to hold a lattice point.
+    Pitch in [pitch_min, pitch_max] degrees; yaw in [0, 360).
+    """
+
+    def __init__(
+        self,
+        areas: list[BaseGeometry],
+        step_m: float,
+        pitch_min_deg: float,
+        pitch_max_deg: float,
+    ) -> None:
+        self.step = float(step_m)
+        self.pitch = (float(pitch_min_deg), float(pitch_max_deg))
+        parts = []
+        for area in areas:
+            minx, miny, maxx, maxy = area.bounds
+            i = np.arange(np.floor(minx / step_m), np.ceil(maxx / step_m) + 1)
+            j = np.arange(np.floor(miny / step_m), np.ceil(maxy / step_m) + 1)
+            ii, jj = np.meshgrid(i, j, indexing="ij")
+            xy = np.column_stack([ii.ravel(), jj.ravel()]) * step_m
+            xy = xy[shapely.intersects_xy(area, xy[:, 0], xy[:, 1])]
+            if len(xy) == 0:
+                p = area.representative_point()
+                xy = np.array([[p.x, p.y]])
+            parts.append(xy)
+        self.positions: F64 = np.unique(np.concatenate(parts), axis=0)
+        self._index = {self._key(x, y): k for k, (x, y) in enumerate(self.positions)}
+
+    def _key(self, x: float, y: float) -> tuple[int, int]:
+        return (int(round(x / self.step)), int(round(y / self.step)))
+
+    def member(self, x: float, y: float) -> bool:
+        """Whether (x, y) is one of the positions."""
+        k = self._index.get(self._key(x, y))
+        return k is not None and bool(np.all(self.positions[k] == (x, y)))
+
+    def snap(self, x: float, y: float) -> tuple[float, float]:
+        """The lattice point nearest to (x, y) (it may lie outside the areas)."""
+        return (round(x / self.step) * self.step, round(y / self.step) * self.step)
+
+    def every(self, k: int) -> NDArray[np.bool_]:
+        """(K,) the positions on every ``k``-th lattice line in x and y."""
+        ij = np.round(self.positions / self.step).astype(int)
+        return (ij[:, 0] % k == 0) & (ij[:, 1] % k == 0)
+
+
+@dataclass(frozen=True)
+class WorkerInputs:
+    """What a worker process needs to score poses as this problem does: the grid as
+    arrays, the model and the coverage settings (a caster factory comes beside it)."""
+
+    grid: GridArrays
+    model: SensorModel
+    settings: OptimizeSettings
+
+
+class Problem:
+    """One scene, one sensor model, one set of settings: see the module docstring.
+
+    scene: local metres; caster: casts against the scene's occluders; settings are
+    validated here. ``min_density_per_m2`` in the settings overrides the model's.
+    """
+
+    def __init__(
+        self,
+        scene: SceneModel,
+        caster: RayCaster,
+        model: SensorModel,
+        settings: OptimizeSettings,
+    ) -> None:
+        self.settings = settings = settings.validated()
+        if settings.min_density_per_m2 is not None:
+            model = replace(model, min_density_per_m2=settings.min_density_per_m2)
+        self.scene = scene
+        self.model = model
+        self.grid = GroundGrid(
+            scene, caster, settings.grid_m, settings.target_height_m, model.range_m
+        )
+        self.evaluator: Evaluator = make_evaluator(settings, self.grid, caster, settings.cache)
+        # Rays to uncovered points, candidate sets and the proof that a gap cannot be
+        # seen: always the exact targeted geometry, shared when it is the evaluator.
+        self.probe = (
+            self.evaluator
+            if isinstance(self.evaluator, CachedTargetedEvaluator)
+            else CachedTargetedEvaluator(self.grid, caster)
+        )
+        step = settings.position_step_m or 2.0 * settings.grid_m
+        self.space = SearchSpace(
+            [a.geometry for a in scene.sensor_areas], step, model.pitch_min_deg, model.pitch_max_deg
+        )
+        # The demand: rho of the target points. Every fixed sensor adds at least one
+        # point, so without a cap a run still ends after one sensor per point.
+        self.rho = settings.rho
+        self.goal = math.ceil(settings.rho * self.grid.n_targets)
+        self.max_sensors = settings.max_sensors or self.grid.n_targets
+        self._mast: dict[tuple[float, float], tuple[float, float]] = {}
+
+    @property
+    def n_targets(self) -> int:
+        return self.grid.n_targets
+
+    def reached(self, n_covered: int) -> bool:
+        """Whether ``n_covered`` target points meet the goal."""
+        return n_covered >= self.goal
+
+    # --- poses -------------------------------------------------------------------
+    def height_at(self, x: float, y: float) -> float:
+        """Mast height at local (x, y): the sensor area's ``height_m``, else the model's."""
+        for area in self.scene.sensor_areas:
+            if area.height_m is not None and shapely.intersects_xy(area.geometry, x, y):
+                return area.height_m
+        return self.model.mount_height_m
+
+    def pose(self, x: float, y: float, pitch: float, yaw: float) -> SensorPose:
+        """The pose at local (x, y) on its mast (ground and height looked up once)."""
+        key = (float(x), float(y))
+        if key not in self._mast:
+            height = self.height_at(*key)
+            ground = float(self.grid.ground_z(np.array([key]))[0])
+            self._mast[key] = (ground + height, height)
+        z, height = self._mast[key]
+        return SensorPose(key[0], key[1], z, height, float(pitch), float(yaw))
+
+    def evaluate(self, pose: SensorPose, band_m: float | None = None) -> SensorCoverage:
+        """Coverage of ``pose`` by the problem's method, with footprint cells outside
+        the targets within ``band_m`` (see ``coverage.base``)."""
+        return self.evaluator.evaluate(self.model, pose, outside_band_m=band_m)
+
+    def evaluate_full(self, pose: SensorPose) -> SensorCoverage:
+        """Coverage of ``pose`` with its whole footprint and its line of sight, as a
+        result reports it."""
+        return self.evaluator.evaluate(self.model, pose, outside_band_m=math.inf, visibility=True)
+
+    def reachable(self, pose: SensorPose, wanted: NDArray[np.bool_]) -> NDArray[np.int64]:
+        """Target ordinals among ``wanted`` (N,) that some orientation within the pitch
+        limits might cover from the pose's position (``CachedTargetedEvaluator``)."""
+        return self.probe.reachable(self.model, pose, wanted)
+
+    def blind_areas(self, step_every: int = 2) -> list[str]:
+        """Sensor areas from whose positions (every ``step_every``-th lattice point,
+        and always at least one) no target point can be covered at all."""
+        wanted = np.ones(self.n_targets, dtype=bool)
+        positions = self.space.positions
+        every = self.space.every(step_every)
+        blind = []
+        for area in self.scene.sensor_areas:
+            inside = shapely.intersects_xy(area.geometry, *positions.T)
+            probe = positions[inside & every]
+            if len(probe) == 0:
+                probe = positions[inside][:1]
+            seen = any(len(self.reachable(self.pose(x, y, 0.0, 0.0), wanted)) for x, y in probe)
+            if not seen:
+                blind.append(area.name)
+        return blind
+
+    def worker_inputs(self) -> WorkerInputs:
+        """What a worker process needs to score poses as this problem does."""
+        return WorkerInputs(self.grid.arrays(), self.model, self.settings)
+
+    @property
+    def extra_rays(self) -> int:
+        """Rays cast outside evaluations: drops onto the ground, reachability probes."""
+        return self.grid.drop_rays + self.probe.extra_rays

@@ -1,0 +1,324 @@
+"""A finished layout: what every output reads, in world coordinates, with no caster.
+
+``finish_layout`` is the last stage of the core, shared by an optimization and by the
+evaluation of a given layout: it combines the per-sensor coverages, converts poses,
+masts, areas and target points to world metres, drapes every footprint on the ground
+and computes the paper's metrics. The ``Result`` it returns is plain data: result.json,
+sensors.csv, sensors.geojson, coverage.png and the objects spawned in Blender are all
+written from it, and nothing after it casts a ray.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import shapely
+import shapely.affinity
+from numpy.typing import NDArray
+from scipy import ndimage
+from shapely.geometry.base import BaseGeometry
+
+from .coverage.base import SensorCoverage, footprint_polygon, summarize
+from .coverage.reference import reference_footprint_m2
+from .geom.drape import drape
+from .geom.grid import GroundGrid
+from .model.scene import Area, SceneModel
+from .model.sensors import SensorModel
+
+F64 = NDArray[np.float64]
+I32 = NDArray[np.int32]
+
+
+@dataclass(frozen=True)
+class SensorRecord:
+    """One placed sensor. World metres, degrees; ``mast`` indexes ``Result.masts``.
+
+    footprint: the ground region it covers (density over the threshold, line of
+    sight), a (Multi)Polygon in world XY; footprint_m2 its area. drape: the footprint
+    as a mesh on the ground, vertices (V, 3) world metres and triangles (T, 3), or
+    None (then it lies flat at the mast foot). sensor_area: the area it stands in.
+    rays: sight rays its final evaluation cast.
+    """
+
+    n: int
+    x: float
+    y: float
+    z: float
+    height_m: float
+    pitch_deg: float
+    yaw_deg: float
+    model: SensorModel
+    mast: int
+    fitness: float
+    epochs: int
+    covered_target_m2: float
+    footprint_m2: float
+    footprint: BaseGeometry
+    drape: tuple[F64, I32] | None = None
+    sensor_area: str | None = None
+    rays: int = 0
+
+
+@dataclass(frozen=True)
+class MastRecord:
+    """A mast: world position of its foot (``z_ground``), height, the sensors on it
+    (their ``n``)."""
+
+    n: int
+    x: float
+    y: float
+    z_ground: float
+    height_m: float
+    sensors: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class Result:
+    """Sensors, masts, areas and per-target-point coverage, all in world coordinates.
+
+    points: (N, 3) target points; n_visible, n_covered: (N,) counts of sensors that
+    see / cover each point; best_density: (N,) the highest density among the covering
+    sensors (points/m^2, 0: none); cell_m: the target grid spacing (each point stands
+    for cell_m^2 of ground). metrics: the paper's figures (see ``layout_metrics``);
+    uncovered: the connected uncovered patches (``uncovered_parts``). scene: the
+    source file's name; origin: (3,) the local origin the core worked in; settings:
+    the settings (an ``OptimizeSettings`` or ``CoverageSettings``); model: the run's
+    sensor model (None when each sensor brought its own).
+    """
+
+    sensors: tuple[SensorRecord, ...]
+    masts: tuple[MastRecord, ...]
+    targets: tuple[tuple[str, BaseGeometry], ...]
+    sensor_areas: tuple[tuple[str, BaseGeometry], ...]
+    points: F64
+    n_visible: I32
+    n_covered: I32
+    cell_m: float
+    best_density: F64 | None = None
+    metrics: dict[str, Any] = field(default_factory=dict)
+    stop_reason: str = ""
+    uncovered: tuple[dict[str, Any], ...] = ()
+    warnings: tuple[str, ...] = ()
+    scene: str = ""
+    origin: F64 = field(default_factory=lambda: np.zeros(3))
+    settings: Any = None
+    model: SensorModel | None = None
+    target_polygon_m2: float = 0.0
+    rays: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def coverage_fraction(self) -> float:
+        return float((self.n_covered > 0).mean()) if len(self.n_covered) else 0.0
+
+
+@dataclass(frozen=True)
+class Provenance:
+    """How a layout came about, for its metrics and reports.
+
+    fitness, epochs: per sensor (None: not optimized); evaluations, sight_rays: spent
+    by the optimizer before the final evaluation; t0: ``time.perf_counter()`` when the
+    work began (wall_s is measured from it).
+    """
+
+    t0: float
+    fitness: Sequence[float] | None = None
+    epochs: Sequence[int] | None = None
+    evaluations: int = 0
+    sight_rays: int = 0
+    stop_reason: str = ""
+    warnings: tuple[str, ...] = ()
+    settings: Any = None
+    model: SensorModel | None = None
+
+
+def finish_layout(
+    scene: SceneModel,
+    grid: GroundGrid,
+    coverages: Sequence[SensorCoverage],
+    mast_of: Sequence[int],
+    how: Provenance,
+    extra_rays: int = 0,
+) -> Result:
+    """The ``Result`` of evaluated sensors (see the module docstring).
+
+    scene, grid: what the coverages were computed on (local metres); coverages: one
+    per sensor, evaluated in full (``outside_band_m=inf``, with visibility); mast_of:
+    (n,) each sensor's mast label 0..m-1, a mast standing where its first sensor
+    stands, as tall as its tallest; extra_rays: rays the caller cast outside
+    evaluations and drops (reachability probes, candidate sets).
+    """
+    summary = summarize(grid, list(coverages))
+    ox, oy, oz = (float(v) for v in scene.origin)
+
+    def ground_world(xy_world: F64) -> F64:
+        return grid.ground_z(xy_world - (ox, oy)) + oz
+
+    sensors = []
+    for k, cov in enumerate(coverages):
+        p = cov.pose
+        footprint = shapely.affinity.translate(footprint_polygon(grid, cov), ox, oy)
+        sensors.append(
+            SensorRecord(
+                n=k + 1,
+                x=p.x + ox,
+                y=p.y + oy,
+                z=p.z + oz,
+                height_m=p.height_m,
+                pitch_deg=p.pitch_deg,
+                yaw_deg=p.yaw_deg,
+                model=cov.model,
+                mast=int(mast_of[k]),
+                fitness=float(how.fitness[k]) if how.fitness is not None else 0.0,
+                epochs=int(how.epochs[k]) if how.epochs is not None else 0,
+                covered_target_m2=len(cov.covered) * grid.cell_area,
+                footprint_m2=float(cov.footprint_m2 or 0.0),
+                footprint=footprint,
+                drape=drape(footprint, ground_world) if not footprint.is_empty else None,
+                sensor_area=getattr(area_at(scene, p.x, p.y), "name", None),
+                rays=cov.rays,
+            )
+        )
+    masts = []
+    for label in range(max(mast_of, default=-1) + 1):
+        members = [s for s in sensors if s.mast == label]
+        first = members[0]
+        masts.append(
+            MastRecord(
+                n=label + 1,
+                x=first.x,
+                y=first.y,
+                z_ground=first.z - first.height_m,
+                height_m=max(s.height_m for s in members),
+                sensors=tuple(s.n for s in members),
+            )
+        )
+    sight = how.sight_rays + sum(c.rays for c in coverages)
+    drop = grid.drop_rays
+    metrics = layout_metrics(
+        coverages,
+        summary.n_covered,
+        grid.spacing,
+        n_masts=len(masts),
+        epochs=how.epochs,
+        evaluations=how.evaluations,
+        wall_s=time.perf_counter() - how.t0,
+        rays_cast=sight + drop + extra_rays,
+    )
+
+    def world(areas):
+        return tuple((a.name, shapely.affinity.translate(a.geometry, ox, oy)) for a in areas)
+
+    return Result(
+        sensors=tuple(sensors),
+        masts=tuple(masts),
+        targets=world(scene.targets),
+        sensor_areas=world(scene.sensor_areas),
+        points=scene.to_world(grid.target_points),
+        n_visible=summary.n_visible,
+        n_covered=summary.n_covered,
+        cell_m=grid.spacing,
+        best_density=summary.best_density,
+        metrics=metrics,
+        stop_reason=how.stop_reason,
+        uncovered=tuple(uncovered_parts(grid, summary.n_covered == 0, scene)),
+        warnings=how.warnings,
+        scene=scene.source,
+        origin=np.asarray(scene.origin, dtype=float),
+        settings=how.settings,
+        model=how.model,
+        target_polygon_m2=round(float(scene.target_union.area), 2),
+        rays={"sight": sight, "drop": drop, "probe": extra_rays},
+    )
+
+
+def layout_metrics(
+    coverages: Sequence[SensorCoverage],
+    n_covered: NDArray[np.int32],
+    grid_m: float,
+    n_masts: int,
+    epochs: Sequence[int] | None,
+    evaluations: int,
+    wall_s: float,
+    rays_cast: int,
+) -> dict[str, Any]:
+    """The paper's metrics of a layout.
+
+    coverage_fraction, covered_m2, target_area_m2; sensors, masts, cluster_ratio =
+    masts / sensors; relative_sensor_coverage = mean footprint / the model's largest
+    flat-ground footprint (``reference_footprint_m2``; with several models, the mean
+    of each sensor's ratio); overlap_factor = sum of per-sensor covered target m^2 /
+    target m^2; mean_epochs_per_sensor (None when not optimized); evaluations, wall_s,
+    rays_cast. Ratios are None for a layout with no sensor.
+    """
+    n = len(coverages)
+    cell_area = grid_m**2
+    target_m2 = len(n_covered) * cell_area
+    refs = [reference_footprint_m2(c.model, grid_m) for c in coverages]
+    footprints = [c.footprint_m2 or 0.0 for c in coverages]
+    if n and len(set(refs)) == 1:
+        relative: float | None = round(float(np.mean(footprints)) / refs[0], 4)
+    elif n:
+        relative = round(float(np.mean(np.divide(footprints, refs))), 4)
+    else:
+        relative = None
+    covered = int(np.count_nonzero(n_covered))
+    return {
+        "coverage_fraction": round(covered / max(len(n_covered), 1), 6),
+        "covered_m2": covered * cell_area,
+        "target_area_m2": target_m2,
+        "sensors": n,
+        "masts": n_masts,
+        "cluster_ratio": round(n_masts / n, 4) if n else None,
+        "relative_sensor_coverage": relative,
+        "reference_footprint_m2": round(refs[0], 2) if n and len(set(refs)) == 1 else None,
+        "overlap_factor": round(sum(len(c.covered) for c in coverages) * cell_area / target_m2, 4),
+        "mean_epochs_per_sensor": round(float(np.mean(epochs)), 2) if n and epochs else None,
+        "evaluations": evaluations,
+        "wall_s": round(wall_s, 2),
+        "rays_cast": rays_cast,
+    }
+
+
+def area_at(scene: SceneModel, x: float, y: float) -> Area | None:
+    """The first sensor area holding local (x, y) (border included), or None."""
+    for area in scene.sensor_areas:
+        if shapely.intersects_xy(area.geometry, x, y):
+            return area
+    return None
+
+
+def uncovered_parts(
+    grid: GroundGrid, uncovered: NDArray[np.bool_], scene: SceneModel, min_m2: float = 0.0
+) -> list[dict[str, Any]]:
+    """Connected patches of uncovered target points (8-neighbour), largest first.
+
+    Each: the target area's name, m^2, and the patch centroid in world x, y.
+    """
+    if not uncovered.any():
+        return []
+    mask = np.zeros(grid.nx * grid.ny, dtype=bool)
+    mask[grid.target_cells[uncovered]] = True
+    labels, count = ndimage.label(mask.reshape(grid.nx, grid.ny), structure=np.ones((3, 3)))
+    flat = labels.ravel()[grid.target_cells]
+    parts = []
+    for k in range(1, count + 1):
+        members = np.flatnonzero(flat == k)
+        m2 = len(members) * grid.cell_area
+        if m2 < min_m2:
+            continue
+        cx, cy = scene.to_world(grid.target_xy[members].mean(axis=0))
+        region = int(np.bincount(grid.target_region[members]).argmax())
+        parts.append(
+            {
+                "target": scene.targets[region].name,
+                "m2": m2,
+                "x": round(float(cx), 2),
+                "y": round(float(cy), 2),
+            }
+        )
+    parts.sort(key=lambda p: -p["m2"])
+    return parts

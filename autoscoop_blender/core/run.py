@@ -1,0 +1,192 @@
+"""One optimization, end to end: problem -> optimizer -> masts -> result.
+
+``Run.steps()`` is the pipeline as a generator. It builds nothing twice and hands each
+stage's output to the next: the ``Problem`` (grid, evaluators, search space, demand)
+is built once; the optimizer chosen by the settings (``optimize/``) places sensors on
+it and returns a ``Solution``; sensors within ``mast_join_m`` are grouped into masts
+(``masts.py``); ``result.finish_layout`` evaluates the final layout in full and hands
+back a ``Result`` in world metres, with draped footprints and metrics, that holds no
+caster or grid.
+
+The Blender operator time-slices the generator and the CLI draws a progress bar from
+it; both drain the same generator, so the same seed gives the same answer everywhere.
+After every fixed sensor ``on_fixed`` gets a JSON-ready record with what the optimizer
+needs to go on (the ES's random state): a run resumed from those records goes on
+exactly as the uninterrupted one would have.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterator, Sequence
+from typing import Any
+
+import numpy as np
+
+from .geom.raycast import RayCaster
+from .masts import choose_sites, group_positions
+from .model.scene import SceneModel
+from .model.sensors import SensorModel, SensorPose
+from .optimize.base import FixedSensor, Optimizer, Progress, Solution, newly_covered
+from .optimize.es import EvolutionStrategy
+from .optimize.greedy import Greedy
+from .optimize.parallel import WorkerPool
+from .problem import Problem
+from .result import Provenance, Result, finish_layout
+from .settings import OptimizeSettings
+
+# A picklable callable that builds the ray caster (in this process and in workers).
+CasterFactory = Callable[[], RayCaster]
+
+
+class Run:
+    """One optimization of ``model`` sensors on a scene (see module docstring).
+
+    make_caster: builds the caster over the scene's occluders (worker processes call
+    it too). resume: records of sensors fixed by an earlier run with the same inputs
+    (as given to ``on_fixed``); the run goes on after the last of them. workers:
+    processes that score each ES population (same answer).
+    """
+
+    def __init__(
+        self,
+        scene: SceneModel,
+        make_caster: CasterFactory,
+        model: SensorModel,
+        settings: OptimizeSettings,
+        resume: Sequence[dict[str, Any]] = (),
+        on_fixed: Callable[[dict[str, Any]], None] | None = None,
+        workers: int = 1,
+    ) -> None:
+        self.t0 = time.perf_counter()
+        self.problem = Problem(scene, make_caster(), model, settings)
+        self.settings = self.problem.settings
+        self.on_fixed = on_fixed
+        self.solution = Solution(np.zeros(self.problem.n_targets, dtype=bool))
+        for record in resume:
+            self._replay(record)
+        self.optimizer = self._optimizer(make_caster, workers)
+        self._result: Result | None = None
+
+    def _optimizer(self, make_caster: CasterFactory, workers: int) -> Optimizer:
+        if self.settings.optimizer == "greedy":
+            return Greedy()
+        pool = None
+        if workers > 1:
+            pool = WorkerPool(self.problem.worker_inputs(), make_caster, workers)
+        return EvolutionStrategy(pool)
+
+    @property
+    def sensors(self) -> list[FixedSensor]:
+        """The sensors fixed so far (local poses), in order."""
+        return self.solution.sensors
+
+    def blind_areas(self) -> list[str]:
+        """Sensor areas that see no target point (``Problem.blind_areas``)."""
+        return self.problem.blind_areas()
+
+    def steps(self) -> Iterator[Progress]:
+        """Run to the end, yielding progress; then ``result()``."""
+        rho = self.problem.rho
+        solve = self.optimizer.solve(self.problem, self.solution)
+        try:
+            while True:
+                try:
+                    progress = next(solve)
+                except StopIteration:
+                    break
+                if progress.fixed is not None and self.on_fixed is not None:
+                    self.on_fixed(self._record(progress.fixed))
+                yield progress
+        finally:
+            solve.close()
+            self.close()
+        yield self.solution.progress("masts", rho)
+        poses, mast_of = self._masts()
+        yield self.solution.progress("report", rho)
+        self._result = self._finish(poses, mast_of)
+        yield self.solution.progress("done", rho)
+
+    def result(self) -> Result:
+        if self._result is None:
+            for _ in self.steps():
+                pass
+        assert self._result is not None
+        return self._result
+
+    def close(self) -> None:
+        """Stop any worker processes (also done when the search ends)."""
+        self.optimizer.close()
+
+    # --- checkpoints ---------------------------------------------------------------
+    def _record(self, sensor: FixedSensor) -> dict[str, Any]:
+        s = self.solution
+        return {
+            "n": len(s.sensors),
+            "x": sensor.pose.x,
+            "y": sensor.pose.y,
+            "pitch_deg": sensor.pose.pitch_deg,
+            "yaw_deg": sensor.pose.yaw_deg,
+            "fitness": sensor.fitness,
+            "epochs": sensor.epochs,
+            "evaluations": sensor.evaluations,
+            "new_points": sensor.new_points,
+            "coverage": s.coverage,
+            "wall_s": round(time.perf_counter() - self.t0, 3),
+            "rays_cast": s.sight_rays,
+            "evaluations_total": s.evaluations,
+            **s.state,
+        }
+
+    def _replay(self, record: dict[str, Any]) -> None:
+        """Re-fix a sensor from a checkpoint record and take over the optimizer's state."""
+        p = self.problem
+        pose = p.pose(record["x"], record["y"], record["pitch_deg"], record["yaw_deg"])
+        cov = p.evaluate(pose)
+        newly = newly_covered(self.solution.covered, cov.covered)
+        self.solution.fix(
+            FixedSensor(pose, record["fitness"], record["epochs"], record["evaluations"], newly)
+        )
+        self.solution.state = {k: record[k] for k in ("rng_state",) if k in record}
+        # Time, rays and evaluations spent before the interruption still count.
+        self.t0 = time.perf_counter() - record.get("wall_s", 0.0)
+        self.solution.sight_rays = record.get("rays_cast", self.solution.sight_rays)
+        self.solution.evaluations = record.get("evaluations_total", self.solution.evaluations)
+
+    # --- after the optimizer -------------------------------------------------------
+    def _masts(self) -> tuple[list[SensorPose], list[int]]:
+        """Sensors grouped into masts: their poses moved to the chosen sites, and each
+        one's mast label."""
+        p, sensors = self.problem, self.solution.sensors
+        if not sensors:
+            return [], []
+        xy = np.array([[s.pose.x, s.pose.y] for s in sensors])
+        labels = group_positions(xy, self.settings.mast_join_m)
+
+        def cover(i: int, x: float, y: float) -> np.ndarray:
+            pose = sensors[i].pose
+            return p.evaluate(p.pose(x, y, pose.pitch_deg, pose.yaw_deg)).covered
+
+        keep = min(self.solution.n_covered, p.goal)
+        new_xy, labels = choose_sites(xy, labels, cover, p.n_targets, keep)
+        poses = [
+            p.pose(x, y, s.pose.pitch_deg, s.pose.yaw_deg) for s, (x, y) in zip(sensors, new_xy)
+        ]
+        return poses, [int(label) for label in labels]
+
+    def _finish(self, poses: list[SensorPose], mast_of: list[int]) -> Result:
+        """The final full evaluation of every sensor, and the result."""
+        p, s = self.problem, self.solution
+        coverages = [p.evaluate_full(pose) for pose in poses]
+        how = Provenance(
+            t0=self.t0,
+            fitness=[f.fitness for f in s.sensors],
+            epochs=[f.epochs for f in s.sensors],
+            evaluations=s.evaluations,
+            sight_rays=s.sight_rays,
+            stop_reason=s.stop_reason,
+            warnings=p.scene.warnings,
+            settings=self.settings,
+            model=p.model,
+        )
+        return finish_layout(p.scene, p.grid, coverages, mast_of, how, p.probe.extra_rays)

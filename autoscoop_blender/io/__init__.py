@@ -1,0 +1,1 @@
+"""Files in and out, Blender-free: config, sensors files, reports, the coverage map."""

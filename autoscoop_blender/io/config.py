@@ -1,0 +1,32 @@
+"""The optimize config file (TOML): settings and the sensor model.
+
+Top-level keys are the knobs of ``core.settings.OptimizeSettings`` plus ``model`` (a
+preset name or a table of model keys); the tables ``[es]`` and ``[fitness]`` hold
+those groups' knobs. What a key means and which values it takes is defined once, in
+``core/settings.py``.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+from ..core.errors import InputError
+from ..core.model.sensors import PAPER_CAMERA, SensorModel
+from ..core.settings import OptimizeSettings
+
+
+def load_config(path: str | Path | None) -> tuple[OptimizeSettings, SensorModel]:
+    """Settings and sensor model from a TOML file (the defaults without one);
+    InputError naming the file and the key for anything wrong in it."""
+    if path is None:
+        return OptimizeSettings(), PAPER_CAMERA
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"{path}: config file not found")
+    try:
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        raise InputError(f"{p.name}: not valid TOML ({e})") from None
+    model = SensorModel.from_spec(data.pop("model", "paper_camera"), f"{p.name}: model")
+    return OptimizeSettings.from_mapping(data, p.name), model
