@@ -66,7 +66,8 @@ def choose_sites(
         sites = np.unique(current[members], axis=0)
         if len(sites) == 1:
             continue
-        best = (-1, None, None)  # (covered, site, {moved sensor: its new cover})
+        # (covered, site, {moved sensor: its new cover})
+        best: tuple[int, F64 | None, dict[int, NDArray[np.int64]]] = (-1, None, {})
         for site in sites:
             moved = [k for k in members if not np.array_equal(current[k], site)]
             new = {k: np.asarray(cover(k, *site), dtype=np.int64) for k in moved}

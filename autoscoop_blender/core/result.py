@@ -304,7 +304,7 @@ def uncovered_parts(
     mask[grid.target_cells[uncovered]] = True
     labels, count = ndimage.label(mask.reshape(grid.nx, grid.ny), structure=np.ones((3, 3)))
     flat = labels.ravel()[grid.target_cells]
-    parts = []
+    parts: list[dict[str, Any]] = []
     for k in range(1, count + 1):
         members = np.flatnonzero(flat == k)
         m2 = len(members) * grid.cell_area

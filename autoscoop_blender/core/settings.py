@@ -153,7 +153,7 @@ def settings_schema(cls: type, prefix: str = "") -> Iterator[Setting]:
     hints = typing.get_type_hints(cls)
     for f in fields(cls):
         hint = hints[f.name]
-        if is_dataclass(hint):
+        if isinstance(hint, type) and is_dataclass(hint):
             yield from settings_schema(hint, f"{prefix}{f.name}.")
             continue
         meta = f.metadata.get("knob")
@@ -184,7 +184,8 @@ def from_mapping(cls: type[T], data: Mapping[str, Any], label: str) -> T:
             values[key] = from_mapping(hints[key], value, f"{label} [{key}]")
         else:
             values[key] = schema[key].coerce(value, label)
-    return replace(cls(), **values)  # type: ignore[misc]
+    defaults: Any = cls()
+    return replace(defaults, **values)
 
 
 def flag_values(cls: type, options: Mapping[str, Any]) -> dict[str, Any]:
@@ -211,7 +212,11 @@ class CoverageSettings:
     """
 
     method: str = knob(
-        "targeted", "coverage method", choices=METHODS, flag="--method", label="Coverage method"
+        "targeted",
+        "how a pose's coverage is computed",
+        choices=METHODS,
+        flag="--method",
+        label="Coverage method",
     )
     grid_m: float = knob(
         1.0,
@@ -327,7 +332,11 @@ class OptimizeSettings(CoverageSettings):
     """
 
     optimizer: str = knob(
-        "es", "optimizer", choices=OPTIMIZERS, flag="--optimizer", label="Optimizer"
+        "es",
+        "how the sensors are placed",
+        choices=OPTIMIZERS,
+        flag="--optimizer",
+        label="Optimizer",
     )
     rho: float = knob(
         0.97,

@@ -201,7 +201,7 @@ class View:
         )
 
     def to_px(
-        self, x: NDArray[np.float64], y: NDArray[np.float64]
+        self, x: NDArray[np.float64] | float, y: NDArray[np.float64] | float
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Continuous (col, row) pixel coordinates of world points (x, y), any shape."""
         return (np.asarray(x) - self.x_left) * self.scale, (self.y_top - np.asarray(y)) * self.scale

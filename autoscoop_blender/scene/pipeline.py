@@ -32,7 +32,13 @@ from ..core.model.sensors import SensorModel, SensorSpec
 from ..core.optimize.base import Progress
 from ..core.result import Result
 from ..core.run import Run
-from ..core.settings import PANEL_SETTINGS, CoverageSettings, OptimizeSettings, from_mapping
+from ..core.settings import (
+    PANEL_SETTINGS,
+    CoverageSettings,
+    OptimizeSettings,
+    from_mapping,
+    settings_schema,
+)
 from ..io.figure import render_png
 from ..io.reports import coverage_dict, result_dict, sensors_csv, sensors_geojson
 from .extract import area_role, curve_rings, extract_scene
@@ -75,9 +81,9 @@ def settings_from(props: Any) -> OptimizeSettings:
 
 
 def coverage_settings_from(props: Any) -> CoverageSettings:
-    """The panel's coverage settings (those the optimizer shares), validated."""
-    shared = {s.path for s in PANEL_SETTINGS if "." not in s.path}
-    data = {k: v for k, v in settings_from(props).to_dict().items() if k in shared}
+    """The coverage part of the panel's settings (an optimization's are a superset)."""
+    mine = {s.path for s in settings_schema(CoverageSettings)}
+    data = {k: v for k, v in settings_from(props).to_dict().items() if k in mine}
     return from_mapping(CoverageSettings, data, "AutoSCOOP panel").validated()
 
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from autoscoop_blender.core.raycast import TriangleCaster
+from autoscoop_blender.core.geom.raycast import TriangleCaster
 from autoscoop_blender.scene.bvh import BVHCaster
 from autoscoop_blender.scene.extract import extract_scene
 

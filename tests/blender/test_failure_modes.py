@@ -8,11 +8,13 @@ import bpy
 import numpy as np
 import pytest
 
-from autoscoop_blender.core.analysis import CoverageSettings, evaluate_sensors
-from autoscoop_blender.core.coverage import TargetedEvaluator, place
-from autoscoop_blender.core.grid import GroundGrid
-from autoscoop_blender.core.sensor_file import parse_sensors
-from autoscoop_blender.core.sensors import PAPER_CAMERA
+from autoscoop_blender.core.coverage.base import place
+from autoscoop_blender.core.coverage.targeted import TargetedEvaluator
+from autoscoop_blender.core.evaluate import evaluate_layout
+from autoscoop_blender.core.settings import CoverageSettings
+from autoscoop_blender.core.geom.grid import GroundGrid
+from autoscoop_blender.core.model.sensors import PAPER_CAMERA
+from autoscoop_blender.io.sensor_file import parse_sensors
 from autoscoop_blender.scene.bvh import BVHCaster
 from autoscoop_blender.scene.extract import extract_scene
 from tests.blender import builders as b
@@ -88,10 +90,10 @@ def test_a_sensor_inside_a_wall_is_a_warning_and_sees_nothing():
     )
     # The drop at (-8, 0) lands on the wall top (12 m): 5 m below it is inside.
     specs[0] = replace(specs[0], height_m=-5.0)
-    res = evaluate_sensors(scene, caster, specs, CoverageSettings())
+    res = evaluate_layout(scene, caster, specs, CoverageSettings())
     assert any("sensor 1" in w and "inside an occluder" in w for w in res.warnings)
     assert not any("sensor 2" in w for w in res.warnings)
-    assert len(res.coverages[0].covered) == 0 and len(res.coverages[1].covered) > 0
+    assert res.sensors[0].covered_target_m2 == 0 and res.sensors[1].covered_target_m2 > 0
 
 
 def test_georeferenced_scene_covers_exactly_like_the_local_one():
@@ -110,9 +112,10 @@ def test_georeferenced_scene_covers_exactly_like_the_local_one():
             },
             "s.json",
         )
-        res = evaluate_sensors(scene, caster, specs, CoverageSettings(grid_m=0.5))
-        covered.append(np.sort(res.coverages[0].covered))
-        assert res.to_dict()["sensors"][0]["x"] == pytest.approx(e - 8)
+        res = evaluate_layout(scene, caster, specs, CoverageSettings(grid_m=0.5))
+        # The target points this sensor covers, relative to the scene's corner (e, n).
+        covered.append(res.points[res.n_covered > 0, :2] - (e, n))
+        assert res.sensors[0].x == pytest.approx(e - 8)
     assert np.array_equal(covered[0], covered[1]) and len(covered[0]) > 1000
 
 

@@ -4,11 +4,11 @@ import bpy
 import numpy as np
 import shapely
 
-from autoscoop_blender.core.es import ESParams
-from autoscoop_blender.core.optimize import OptimizationRun, OptimizeSettings
-from autoscoop_blender.core.sensors import PAPER_CAMERA
-from autoscoop_blender.scene.bvh import BVHCaster
+from autoscoop_blender.core.model.sensors import PAPER_CAMERA
+from autoscoop_blender.core.run import Run
+from autoscoop_blender.core.settings import ESParams, OptimizeSettings
 from autoscoop_blender.scene.extract import extract_scene
+from autoscoop_blender.scene.factory import BVHFactory
 from tests.blender import builders as b
 
 FAST = OptimizeSettings(rho=0.9, es=ESParams(mu=12, lam=6, max_epochs=8))
@@ -24,29 +24,31 @@ def walled_scene():
 
 def _run():
     scene = extract_scene()
-    return OptimizationRun(scene, BVHCaster.from_scene(scene), PAPER_CAMERA, FAST)
+    return Run(scene, BVHFactory.of(scene), PAPER_CAMERA, FAST)
 
 
 def test_sensor_behind_the_wall_is_never_chosen():
     walled_scene()
     run = _run()
-    behind = next(a for a in run.scene.sensor_areas if a.name == "SensorArea_Behind")
+    problem = run.problem
+    behind = next(a for a in problem.scene.sensor_areas if a.name == "SensorArea_Behind")
     # The wall hides the whole target from there (checked with rays) ...
-    wanted = np.ones(run.grid.n_targets, dtype=bool)
+    wanted = np.ones(problem.n_targets, dtype=bool)
     from_behind = set()
-    for x, y in run.space.positions:
+    for x, y in problem.space.positions:
         if shapely.intersects_xy(behind.geometry, x, y):
-            pose = run.pose(x, y, PAPER_CAMERA.pitch_min_deg, 0.0)
-            from_behind |= set(run.probe.reachable(PAPER_CAMERA, pose, wanted))
+            pose = problem.pose(x, y, PAPER_CAMERA.pitch_min_deg, 0.0)
+            from_behind |= set(problem.reachable(pose, wanted))
     assert not from_behind
+    assert run.blind_areas() == ["SensorArea_Behind"]
     # ... and no sensor is placed there.
     res = run.result()
     assert res.metrics["coverage_fraction"] >= 0.9
     for s in res.sensors:
-        assert not shapely.intersects_xy(behind.geometry, s.pose.x, s.pose.y)
+        assert not shapely.intersects_xy(behind.geometry, s.x, s.y)
 
     # Without the wall the same area would see the target.
     bpy.data.objects["Wall_High"]["autoscoop_ignore"] = True
-    open_run = _run()
-    pose = open_run.pose(-8.0, 24.0, PAPER_CAMERA.pitch_min_deg, 0.0)
-    assert len(open_run.probe.reachable(PAPER_CAMERA, pose, wanted)) > 100
+    problem = _run().problem
+    pose = problem.pose(-8.0, 24.0, PAPER_CAMERA.pitch_min_deg, 0.0)
+    assert len(problem.reachable(pose, wanted)) > 100

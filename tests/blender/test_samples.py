@@ -7,7 +7,7 @@ import pytest
 import shapely
 
 from autoscoop_blender.scene.extract import extract_scene
-from headless import samples
+from headless.devtools import samples
 from tests.blender.conftest import SAMPLES
 
 

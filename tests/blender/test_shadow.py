@@ -8,12 +8,14 @@ import numpy as np
 import pytest
 import shapely
 
-from autoscoop_blender.core.coverage import PointcloudEvaluator, TargetedEvaluator, place
-from autoscoop_blender.core.grid import GroundGrid
-from autoscoop_blender.core.sensors import PAPER_CAMERA
+from autoscoop_blender.core.coverage.base import place
+from autoscoop_blender.core.coverage.pointcloud import PointcloudEvaluator
+from autoscoop_blender.core.coverage.targeted import TargetedEvaluator
+from autoscoop_blender.core.geom.grid import GroundGrid
+from autoscoop_blender.core.model.sensors import PAPER_CAMERA
 from autoscoop_blender.scene.bvh import BVHCaster
 from autoscoop_blender.scene.extract import extract_scene
-from headless.samples import FLAT_WALL_BOX
+from headless.devtools.samples import FLAT_WALL_BOX
 
 SENSOR = np.array([-8.0, 0.0, 7.0])  # inside SensorArea_1, 7 m over flat ground
 

@@ -15,8 +15,9 @@ from mathutils import Vector
 from shapely.geometry import MultiPolygon, Polygon, box
 
 from autoscoop_blender import names
-from autoscoop_blender.core.placement import MastRecord, Placement, SensorRecord
-from autoscoop_blender.core.sensors import PAPER_CAMERA, ROADSIDE_LIDAR
+from autoscoop_blender.core.geom.drape import drape
+from autoscoop_blender.core.model.sensors import PAPER_CAMERA, ROADSIDE_LIDAR
+from autoscoop_blender.core.result import MastRecord, Result, SensorRecord
 from autoscoop_blender.scene import spawn
 from autoscoop_blender.scene.extract import extract_scene
 from autoscoop_blender.scene.spawn import remove_results, spawn_results
@@ -65,7 +66,7 @@ def grid_points():
     return pts, n_covered
 
 
-def make_placement(extra_sensors=()):
+def make_result(extra_sensors=()):
     sensors = (
         sensor(1, PAPER_CAMERA, (-8.0, 0.0, 7.0), 7.0, 40.0, 0.0, 0, RING),
         sensor(2, PAPER_CAMERA, (-8.0, 0.0, 7.0), 7.0, 70.0, 270.0, 0, TRAPEZOID),
@@ -78,7 +79,7 @@ def make_placement(extra_sensors=()):
         MastRecord(2, 30.0, 40.0, 1.0, 7.0, (3, 4)),
     )
     pts, n_covered = grid_points()
-    return Placement(
+    return Result(
         sensors=sensors,
         masts=masts,
         targets=(("Target_Area", box(0, -25, 50, 25)),),
@@ -158,7 +159,7 @@ def test_camera_looks_along_the_sensor_forward(user_scene):
         sensor(10 + k, PAPER_CAMERA, (5.0 * k, -30.0, 9.0), 7.0, p, y, 0, Polygon())
         for k, (p, y) in enumerate(POSES)
     )
-    spawn_results(user_scene, make_placement(extra))
+    spawn_results(user_scene, make_result(extra))
     bpy.context.view_layer.update()  # matrix_world re-derived from loc/rot/scale
     cams = spawned(spawn.SENSORS_COLLECTION)
     for k, (pitch, yaw) in enumerate(POSES):
@@ -176,7 +177,7 @@ def test_camera_looks_along_the_sensor_forward(user_scene):
 
 
 def test_camera_lens_range_and_properties(user_scene):
-    spawn_results(user_scene, make_placement())
+    spawn_results(user_scene, make_result())
     cams = spawned(spawn.SENSORS_COLLECTION)
     assert [c.name for c in sorted(cams.values(), key=lambda c: c.name)] == [
         "Sensor_01",
@@ -233,11 +234,11 @@ def signed_volume(verts, faces):
 
 
 def test_frusta_stay_inside_fov_and_range(user_scene):
-    placement = make_placement()
-    spawn_results(user_scene, placement)
+    result = make_result()
+    spawn_results(user_scene, result)
     frusta = spawned(spawn.FRUSTA_COLLECTION)
-    assert len(frusta) == len(placement.sensors)
-    for rec in placement.sensors:
+    assert len(frusta) == len(result.sensors)
+    for rec in result.sensors:
         obj = frusta[rec.n]
         assert obj.name == f"Frustum_{rec.n:02d}"
         assert obj.display_type == "WIRE"
@@ -275,12 +276,12 @@ def expected_frame(pitch, yaw):
 
 
 def test_camera_frustum_reaches_its_corners_and_lidar_goes_round(user_scene):
-    placement = make_placement()
-    spawn_results(user_scene, placement)
+    result = make_result()
+    spawn_results(user_scene, result)
     frusta = spawned(spawn.FRUSTA_COLLECTION)
 
     def angles(n):
-        rec = placement.sensors[n - 1]
+        rec = result.sensors[n - 1]
         rel = world_vertices(frusta[n]) - (rec.x, rec.y, rec.z)
         rel = rel[np.linalg.norm(rel, axis=1) > 1e-6]
         d = rel / np.linalg.norm(rel, axis=1, keepdims=True)
@@ -324,7 +325,7 @@ def inside_any(tri, p):
 
 
 def test_footprint_area_holes_and_flat_height(user_scene):
-    spawn_results(user_scene, make_placement())
+    spawn_results(user_scene, make_result())
     feet = spawned(spawn.FOOTPRINTS_COLLECTION)
     assert sorted(feet) == [1, 2, 4]  # sensor 3's footprint is empty
     for n, expected in ((1, RING_M2), (2, TRAPEZOID_M2), (4, TWO_SQUARES_M2)):
@@ -346,10 +347,17 @@ def test_footprint_area_holes_and_flat_height(user_scene):
 
 
 def test_footprint_drapes_on_terrain(user_scene):
+    """The core drapes footprints (``core.geom.drape``); spawn builds the mesh as given."""
+
     def hill(xy):
         return 0.1 * xy[:, 0] + 2.0 * np.sin(xy[:, 1] / 5.0)
 
-    spawn_results(user_scene, make_placement(), ground_z=hill)
+    result = make_result()
+    sensors = tuple(
+        replace(s, drape=None if s.footprint.is_empty else drape(s.footprint, hill))
+        for s in result.sensors
+    )
+    spawn_results(user_scene, replace(result, sensors=sensors))
     v, tri = xy_triangles(spawned(spawn.FOOTPRINTS_COLLECTION)[1])
     assert np.allclose(v[:, 2], hill(v[:, :2]) + 0.15, atol=1e-4)
     # Interior vertices too, not only the outline: every point of the 2 m lattice
@@ -367,7 +375,7 @@ def test_footprint_drapes_on_terrain(user_scene):
 
 
 def test_masts(user_scene):
-    spawn_results(user_scene, make_placement())
+    spawn_results(user_scene, make_result())
     masts = spawned(spawn.MASTS_COLLECTION)
     assert sorted(masts) == [1, 2]
     for n, (x, y, z0, h) in {1: (-8.0, 0.0, 0.0, 7.0), 2: (30.0, 40.0, 1.0, 7.0)}.items():
@@ -384,23 +392,23 @@ def test_masts(user_scene):
 
 
 def test_coverage_mesh(user_scene):
-    placement = make_placement()
-    spawn_results(user_scene, placement)
+    result = make_result()
+    spawn_results(user_scene, result)
     (obj,) = bpy.data.collections[spawn.COVERAGE_COLLECTION].objects
     mesh = obj.data
-    n = len(placement.points)
+    n = len(result.points)
     assert len(mesh.polygons) == n == GRID_NX * GRID_NY
 
     values = np.empty(n, dtype=np.int32)
     mesh.attributes[spawn.COVERAGE_ATTR].data.foreach_get("value", values)
     assert mesh.attributes[spawn.COVERAGE_ATTR].domain == "FACE"
-    assert np.array_equal(values, placement.n_covered)
+    assert np.array_equal(values, result.n_covered)
 
     # Each face: a horizontal 0.9 x 0.9 m square centred 5 cm above its point.
     v = world_vertices(obj)
     faces = faces_of(mesh)
     quads = v[np.array(faces)]
-    assert np.allclose(quads.mean(axis=1), placement.points + (0, 0, 0.05), atol=1e-5)
+    assert np.allclose(quads.mean(axis=1), result.points + (0, 0, 0.05), atol=1e-5)
     assert np.allclose(quads[:, :, 2], GRID_Z + 0.05, atol=1e-5)
     assert np.allclose(np.ptp(quads[:, :, 0], axis=1), 0.9 * CELL_M, atol=1e-5)
     assert np.allclose(np.ptp(quads[:, :, 1], axis=1), 0.9 * CELL_M, atol=1e-5)
@@ -415,10 +423,10 @@ def test_coverage_mesh(user_scene):
     mesh.polygons.foreach_get("loop_start", start)
     expected = {0: (1, 0, 0), 1: (1, 1, 0), 2: (0, 1, 0)}
     for count, rgb in expected.items():
-        face = int(np.flatnonzero(placement.n_covered == count)[0])
+        face = int(np.flatnonzero(result.n_covered == count)[0])
         corners = rgba[start[face] : start[face] + 4, :3]
         assert np.allclose(corners, rgb, atol=1e-6), count
-    four = int(np.flatnonzero(placement.n_covered == 4)[0])
+    four = int(np.flatnonzero(result.n_covered == 4)[0])
     r, g, b_ = rgba[start[four], :3]
     assert r == 0 and b_ == 1  # cyan / blue for three or more
 
@@ -436,7 +444,7 @@ def test_coverage_mesh(user_scene):
 def test_everything_in_results_and_nothing_occludes(user_scene):
     before = extract_scene(user_scene)
     old = set(bpy.data.objects)
-    results = spawn_results(user_scene, make_placement())
+    results = spawn_results(user_scene, make_result())
     bpy.context.view_layer.update()
     new = set(bpy.data.objects) - old
     assert results.name == names.RESULTS_COLLECTION
@@ -455,11 +463,11 @@ def test_everything_in_results_and_nothing_occludes(user_scene):
 def test_spawning_twice_replaces_and_leaves_no_orphans(user_scene):
     users = snapshot()
     matrices = user_matrices()
-    placement = make_placement()
-    spawn_results(user_scene, placement)
+    result = make_result()
+    spawn_results(user_scene, result)
     first = snapshot()
     counts = {k: len(getattr(bpy.data, k)) for k in ("objects", "meshes", "cameras", "materials")}
-    spawn_results(user_scene, placement)
+    spawn_results(user_scene, result)
     again = {k: len(getattr(bpy.data, k)) for k in counts}
     assert again == counts
     assert snapshot() == first  # same names too: nothing suffixed ".001"
@@ -472,7 +480,7 @@ def test_spawning_twice_replaces_and_leaves_no_orphans(user_scene):
 def test_remove_results_leaves_exactly_the_users_data(user_scene):
     users = snapshot()
     matrices = user_matrices()
-    spawn_results(user_scene, make_placement())
+    spawn_results(user_scene, make_result())
     remove_results(user_scene)
     assert snapshot() == users
     assert names.RESULTS_COLLECTION not in user_scene.collection.children
@@ -489,7 +497,7 @@ def test_name_clashes_and_user_links_survive(user_scene):
     mine_mat = bpy.data.materials.new(spawn.FOOTPRINT_MATERIAL)
     mine.data.materials.append(mine_mat)
     users = snapshot()
-    spawn_results(user_scene, make_placement())
+    spawn_results(user_scene, make_result())
     assert mine.name == "Sensor_01" and mine_mat.name == spawn.FOOTPRINT_MATERIAL
     assert spawned(spawn.SENSORS_COLLECTION)[1].name == "Sensor_01.001"
 
@@ -508,15 +516,15 @@ def test_seventeen_thousand_quads_build_fast(user_scene):
     ij = np.mgrid[0:130, 0:131].reshape(2, -1).T.astype(float)
     pts = np.column_stack([ij * 2.0, rng.uniform(0, 3, len(ij))])
     n_covered = rng.integers(0, 5, len(pts)).astype(np.int32)
-    placement = replace(
-        make_placement(),
+    result = replace(
+        make_result(),
         points=pts,
         n_covered=n_covered,
         n_visible=n_covered,
         cell_m=2.0,
     )
     t = time.perf_counter()
-    spawn_results(user_scene, placement)
+    spawn_results(user_scene, result)
     elapsed = time.perf_counter() - t
     mesh = bpy.data.objects[spawn.COVERAGE_NAME].data
     assert len(mesh.polygons) == len(pts) == 17030

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 import shapely
 
-from autoscoop_blender.core.grid import GroundGrid
-from autoscoop_blender.core.raycast import BoxCaster
-from autoscoop_blender.core.scene_model import Area, SceneModel
+from autoscoop_blender.core.geom.grid import GroundGrid
+from autoscoop_blender.core.geom.raycast import BoxCaster
+from autoscoop_blender.core.model.scene import Area, SceneModel
 
 # Two triangles per face of a unit cube, corners indexed by bits (x, y, z).
 _CUBE_FACES = np.array(
@@ -61,3 +63,9 @@ def flat_grid(spacing=0.5, boxes=(), reach=80.0, **scene_kw):
     caster = BoxCaster(boxes, ground_z=0.0)
     scene = flat_scene(boxes=boxes, **scene_kw)
     return GroundGrid(scene, caster, spacing, reach_m=reach), caster
+
+
+def box_caster(boxes=(), ground_z=0.0):
+    """A caster factory (picklable, for runs with worker processes): axis-aligned
+    boxes [(lo, hi)] on a ground plane at ``ground_z``."""
+    return partial(BoxCaster, list(boxes), ground_z=ground_z)

@@ -5,7 +5,7 @@ import json
 
 import numpy as np
 
-from headless.bench_suite import _cell_verdicts, paper_figures
+from headless.devtools.suite import _cell_verdicts, paper_figures
 from tests.core.flat import flat_grid
 
 

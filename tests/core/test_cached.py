@@ -3,9 +3,10 @@
 import numpy as np
 import pytest
 
-from autoscoop_blender.core.cached import CachedTargetedEvaluator
-from autoscoop_blender.core.coverage import TargetedEvaluator, place
-from autoscoop_blender.core.sensors import PAPER_CAMERA, ROADSIDE_LIDAR
+from autoscoop_blender.core.coverage.base import place
+from autoscoop_blender.core.coverage.cached import CachedTargetedEvaluator
+from autoscoop_blender.core.coverage.targeted import TargetedEvaluator
+from autoscoop_blender.core.model.sensors import PAPER_CAMERA, ROADSIDE_LIDAR
 from tests.core.flat import flat_grid
 
 BOXES = [((10, -2, 0), (12, 6, 3)), ((-30, 20, 0), (-20, 30, 8)), ((30, -40, 0), (34, -30, 5))]

@@ -7,13 +7,10 @@ import numpy as np
 import pytest
 import shapely
 
-from autoscoop_blender.core.coverage import (
-    PointcloudEvaluator,
-    TargetedEvaluator,
-    place,
-    summarize,
-)
-from autoscoop_blender.core.sensors import PAPER_CAMERA
+from autoscoop_blender.core.coverage.base import place, summarize
+from autoscoop_blender.core.coverage.pointcloud import PointcloudEvaluator
+from autoscoop_blender.core.coverage.targeted import TargetedEvaluator
+from autoscoop_blender.core.model.sensors import PAPER_CAMERA
 from tests.core.flat import flat_grid
 
 BOX = ((10.0, -2.0, 0.0), (12.0, 6.0, 3.0))

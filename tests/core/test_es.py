@@ -4,7 +4,9 @@ import numpy as np
 import pytest
 import shapely
 
-from autoscoop_blender.core.es import ESParams, SearchSpace, SensorSearch
+from autoscoop_blender.core.optimize.es import SensorSearch, mutate, sample
+from autoscoop_blender.core.problem import SearchSpace
+from autoscoop_blender.core.settings import ESParams
 
 AREAS = [shapely.box(0, 0, 10, 4), shapely.Polygon([(20, 0), (30, 0), (25, 8)])]
 
@@ -23,10 +25,10 @@ def test_lattice_and_tiny_areas():
 def test_mutation_stays_inside_and_within_limits():
     space = SearchSpace(AREAS, 1.0, 31.0, 70.0)
     rng = np.random.default_rng(0)
-    pop = space.sample(200, rng)
+    pop = sample(space, 200, rng)
     union = shapely.union_all(AREAS)
     for _ in range(5):
-        pop = space.mutate(pop, np.array([30.0, 30.0, 40.0, 90.0]), 5, rng)
+        pop = mutate(space, pop, np.array([30.0, 30.0, 40.0, 90.0]), 5, rng)
         assert shapely.intersects_xy(union, pop[:, 0], pop[:, 1]).all()
         assert (pop[:, 2] >= 31.0).all() and (pop[:, 2] <= 70.0).all()
         assert (pop[:, 3] >= 0.0).all() and (pop[:, 3] < 360.0).all()

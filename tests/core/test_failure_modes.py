@@ -8,20 +8,17 @@ import numpy as np
 import pytest
 import shapely
 
-from autoscoop_blender.core.alpha import alpha_mask, alpha_shape, triangulate
-from autoscoop_blender.core.coverage import (
-    PointcloudEvaluator,
-    TargetedEvaluator,
-    auto_oversample,
-    place,
-)
+from autoscoop_blender.core.coverage.base import place
+from autoscoop_blender.core.coverage.pointcloud import PointcloudEvaluator, auto_oversample
+from autoscoop_blender.core.coverage.targeted import TargetedEvaluator
 from autoscoop_blender.core.errors import InputError
-from autoscoop_blender.core.es import ESParams
-from autoscoop_blender.core.optimize import OptimizationRun, OptimizeSettings
-from autoscoop_blender.core.raycast import BoxCaster, inside_solid
-from autoscoop_blender.core.scene_model import Area, SceneModel
-from autoscoop_blender.core.sensors import PAPER_CAMERA, ROADSIDE_LIDAR, SensorPose
-from tests.core.flat import flat_grid
+from autoscoop_blender.core.geom.alpha import alpha_mask, alpha_shape, triangulate
+from autoscoop_blender.core.geom.raycast import BoxCaster, inside_solid
+from autoscoop_blender.core.model.scene import Area, SceneModel
+from autoscoop_blender.core.model.sensors import PAPER_CAMERA, ROADSIDE_LIDAR, SensorPose
+from autoscoop_blender.core.run import Run
+from autoscoop_blender.core.settings import ESParams, OptimizeSettings
+from tests.core.flat import box_caster, flat_grid
 
 # --- alpha shape ---------------------------------------------------------------------
 
@@ -148,7 +145,7 @@ def test_density_at_the_edges_of_range_and_fov():
 
 
 def test_near_zero_incidence_gives_vanishing_density_not_nan():
-    from autoscoop_blender.core.sensors import surface_factor
+    from autoscoop_blender.core.model.sensors import surface_factor
 
     d = np.array([[1.0, 0.0, -1e-9], [0.0, 0.0, -1.0]])
     normals = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])  # ground; a vertical face
@@ -180,11 +177,14 @@ def _scene(target, sensors):
 
 def test_a_sensor_area_too_small_to_move_in():
     scene = _scene(shapely.box(0, -5, 40, 5), [shapely.box(-3.2, 6.1, -3.0, 6.3)])
-    run = OptimizationRun(scene, BoxCaster(ground_z=0.0), PAPER_CAMERA, replace(FAST, rho=0.5))
-    assert len(run.space.positions) == 1
+    run = Run(scene, box_caster(), PAPER_CAMERA, replace(FAST, rho=0.5))
+    positions = run.problem.space.positions
+    assert len(positions) == 1
+    # The one position is the area's inner point.
+    assert shapely.box(-3.2, 6.1, -3.0, 6.3).contains(shapely.Point(positions[0]))
     res = run.result()
     assert res.metrics["coverage_fraction"] >= 0.5
-    assert {(s.pose.x, s.pose.y) for s in res.sensors} == {tuple(run.space.positions[0])}
+    assert {(s.x, s.y) for s in res.sensors} == {tuple(positions[0])}
     assert res.metrics["masts"] == 1
 
 
@@ -194,7 +194,7 @@ def test_a_target_that_needs_hundreds_of_sensors():
     # A short-sighted camera: about 20 m of road per sensor.
     model = replace(PAPER_CAMERA, range_m=15.0, mount_height_m=3.0, min_density_per_m2=0.0)
     settings = replace(FAST, rho=0.97, grid_m=1.0, es=ESParams(mu=6, lam=3, max_epochs=3))
-    res = OptimizationRun(_scene(road, [verge]), BoxCaster(ground_z=0.0), model, settings).result()
+    res = Run(_scene(road, [verge]), box_caster(), model, settings).result()
     assert res.metrics["coverage_fraction"] >= 0.97
     assert res.metrics["sensors"] >= 100
     assert "max_sensors" not in res.stop_reason
@@ -208,12 +208,9 @@ def test_contradictory_pitch_limits_are_an_error():
 def test_one_seed_against_another():
     scene = _scene(shapely.box(0, -7, 100, 7), [shapely.box(0, 10, 100, 14)])
     results = [
-        OptimizationRun(
-            scene, BoxCaster(ground_z=0.0), PAPER_CAMERA, replace(FAST, seed=s)
-        ).result()
-        for s in (0, 1, 2)
+        Run(scene, box_caster(), PAPER_CAMERA, replace(FAST, seed=s)).result() for s in (0, 1, 2)
     ]
-    poses = [tuple((p.pose.x, p.pose.y) for p in r.sensors) for r in results]
+    poses = [tuple((p.x, p.y) for p in r.sensors) for r in results]
     assert len(set(poses)) == 3  # different seeds search differently ...
     for r in results:  # ... and each reaches the goal
         assert r.metrics["coverage_fraction"] >= 0.9
@@ -231,7 +228,7 @@ def test_huge_coordinates_give_the_same_coverage():
             shapely.affinity.translate(base, shift, shift),
             [shapely.affinity.translate(area, shift, shift)],
         )
-        from autoscoop_blender.core.scene_model import choose_origin
+        from autoscoop_blender.core.model.scene import choose_origin
 
         origin = choose_origin(np.array([[shift - 12, shift - 25, 0], [shift + 50, shift + 25, 0]]))
         scene = replace(
@@ -249,19 +246,18 @@ def test_huge_coordinates_give_the_same_coverage():
                 ),
             ),
         )
-        res = OptimizationRun(scene, BoxCaster(ground_z=0.0), PAPER_CAMERA, FAST).result()
+        res = Run(scene, box_caster(), PAPER_CAMERA, FAST).result()
         results.append(res)
     a, b = results
     assert a.metrics["coverage_fraction"] == b.metrics["coverage_fraction"]
-    pa, pb = a.placement(), b.placement()
-    assert [(s.x + 500_000.0, s.y + 500_000.0) for s in pa.sensors] == [
-        (s.x, s.y) for s in pb.sensors
+    assert [(s.x + 500_000.0, s.y + 500_000.0) for s in a.sensors] == [
+        (s.x, s.y) for s in b.sensors
     ]
 
 
 def test_a_target_smaller_than_one_grid_cell_is_a_clear_error():
     from autoscoop_blender.core.errors import SceneContractError
-    from autoscoop_blender.core.grid import GroundGrid
+    from autoscoop_blender.core.geom.grid import GroundGrid
 
     scene = _scene(shapely.box(0.1, 0.1, 0.4, 0.4), [shapely.box(-5, 0, -1, 4)])
     with pytest.raises(SceneContractError, match="holds no point of the 1 m grid"):

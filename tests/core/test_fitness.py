@@ -5,9 +5,10 @@ import math
 import numpy as np
 import pytest
 
-from autoscoop_blender.core.coverage import SensorCoverage
-from autoscoop_blender.core.fitness import FitnessParams, FixedSensors, fitness
-from autoscoop_blender.core.sensors import PAPER_CAMERA, SensorPose
+from autoscoop_blender.core.coverage.base import SensorCoverage
+from autoscoop_blender.core.model.sensors import PAPER_CAMERA, SensorPose
+from autoscoop_blender.core.optimize.fitness import FixedSensors, fitness
+from autoscoop_blender.core.settings import FitnessParams
 from tests.core.flat import flat_grid
 
 P = FitnessParams()  # w_ca 1, w_ds 0.5, w_sc 2.5, zeta 0.02, theta_tau 2 m, theta 20 m

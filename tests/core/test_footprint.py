@@ -5,13 +5,10 @@ import math
 import numpy as np
 import pytest
 
-from autoscoop_blender.core.coverage import (
-    PointcloudEvaluator,
-    TargetedEvaluator,
-    footprint_polygon,
-    place,
-)
-from autoscoop_blender.core.sensors import PAPER_CAMERA
+from autoscoop_blender.core.coverage.base import footprint_polygon, place
+from autoscoop_blender.core.coverage.pointcloud import PointcloudEvaluator
+from autoscoop_blender.core.coverage.targeted import TargetedEvaluator
+from autoscoop_blender.core.model.sensors import PAPER_CAMERA
 from tests.core.flat import flat_grid
 
 PAPER_REFERENCE_M2 = 1229.95  # the paper's largest flat-ground footprint

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from autoscoop_blender.core.raycast import BoxCaster, FloorCaster, TriangleCaster
+from autoscoop_blender.core.geom.raycast import BoxCaster, FloorCaster, TriangleCaster
 from tests.core.flat import box_mesh
 
 BOXES = [((0, 0, 0), (4, 2, 3)), ((10, -5, 0), (11, 5, 6)), ((-8, 3, 1), (-6, 9, 2))]

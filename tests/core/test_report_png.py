@@ -2,18 +2,15 @@
 picture against pixel positions worked out by hand from the world geometry."""
 
 import struct
-import subprocess
-import sys
 import zlib
 
 import numpy as np
 import pytest
 from shapely.geometry import GeometryCollection, LineString, MultiPolygon, Polygon, box
 
-from autoscoop_blender.core import report_png as rp
-from autoscoop_blender.core.placement import MastRecord, Placement, SensorRecord
-from autoscoop_blender.core.sensors import PAPER_CAMERA
-from tests.conftest import ROOT
+from autoscoop_blender.core.model.sensors import PAPER_CAMERA
+from autoscoop_blender.core.result import MastRecord, Result, SensorRecord
+from autoscoop_blender.io import figure as rp
 
 # --------------------------------------------------------------------- a tiny PNG decoder
 
@@ -86,10 +83,10 @@ def _sensor(n: int, footprint, x: float = 0.0, y: float = 0.0) -> SensorRecord:
     )
 
 
-def _placement(targets, areas=(), footprints=(), masts=(), points=None, covered=None, cell=1.0):
+def _result(targets, areas=(), footprints=(), masts=(), points=None, covered=None, cell=1.0):
     points = np.zeros((0, 3)) if points is None else points
     covered = np.zeros(len(points), np.int32) if covered is None else covered
-    return Placement(
+    return Result(
         sensors=tuple(_sensor(i, f) for i, f in enumerate(footprints)),
         masts=tuple(MastRecord(i, x, y, 0.0, 7.0, ()) for i, (x, y) in enumerate(masts)),
         targets=tuple((f"target{i}", g) for i, g in enumerate(targets)),
@@ -123,7 +120,7 @@ def field() -> np.ndarray:
     gx, gy = np.meshgrid(np.arange(100) + 0.5, np.arange(20) + 0.5)
     points = np.column_stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)])
     covered = (points[:, 0] < 50).astype(np.int32)
-    placement = _placement(
+    result = _result(
         targets=[box(0, 0, 100, 20)],
         areas=[box(40, 25, 50, 35)],
         footprints=[box(0, 0, 50, 20)],
@@ -131,7 +128,7 @@ def field() -> np.ndarray:
         points=points,
         covered=covered,
     )
-    return decode_png(rp.render_png(placement, width_px=1200, margin_m=10.0))
+    return decode_png(rp.render_png(result, width_px=1200, margin_m=10.0))
 
 
 def test_image_size_follows_the_world_box(field):
@@ -225,8 +222,8 @@ def _px60(x: float, y: float) -> tuple[int, int]:
 
 def test_empty_footprint_is_skipped_and_a_hole_stays_uncoloured():
     holed = Polygon(box(0, 0, 40, 40).exterior.coords, [box(15, 15, 25, 25).exterior.coords])
-    placement = _placement(targets=[box(0, 0, 40, 40)], footprints=[Polygon(), holed])
-    img = decode_png(rp.render_png(placement, width_px=600))
+    result = _result(targets=[box(0, 0, 40, 40)], footprints=[Polygon(), holed])
+    img = decode_png(rp.render_png(result, width_px=600))
     assert img.shape == (600, 600, 3)
     assert tuple(img[_px60(20.0, 20.0)]) == rp.TARGET_FILL  # in the hole: no green
     assert tuple(img[_px60(5.0, 5.0)]) == tuple(_blend(rp.TARGET_FILL, rp.FOOTPRINT_FILL).round())
@@ -248,11 +245,11 @@ def test_overlapping_footprints_darken_and_multipart_footprints_fill_every_part(
     nested = GeometryCollection(
         [MultiPolygon([box(15, 32, 20, 37)]), LineString([(0, 0), (40, 40)])]
     )
-    placement = _placement(
+    result = _result(
         targets=[box(0, 0, 40, 40)],
         footprints=[box(0, 0, 30, 30), box(10, 0, 40, 30), two, nested],
     )
-    img = decode_png(rp.render_png(placement, width_px=600))
+    img = decode_png(rp.render_png(result, width_px=600))
     one = _blend(rp.TARGET_FILL, rp.FOOTPRINT_FILL)
     # 0.5625 * 217 + 0.4375 * (30, 160, 60) = (135.19, 192.06, 148.31)
     assert tuple(_blend(one, rp.FOOTPRINT_FILL).round()) == (135, 192, 148)
@@ -270,7 +267,7 @@ def test_uncovered_cells_tile_without_seams_at_a_fractional_scale():
     cell = 0.7
     gx, gy = np.meshgrid((np.arange(30) + 0.5) * cell, (np.arange(10) + 0.5) * cell)
     points = np.column_stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)])
-    img = rp.render_rgb(_placement(targets=[], points=points, cell=cell), width_px=777)
+    img = rp.render_rgb(_result(targets=[], points=points, cell=cell), width_px=777)
     scale = 777 / 41.0
     red = np.all(img == rp.UNCOVERED, axis=2)
     rows, cols = np.flatnonzero(red.any(axis=1)), np.flatnonzero(red.any(axis=0))
@@ -283,33 +280,25 @@ def test_uncovered_cells_tile_without_seams_at_a_fractional_scale():
 def test_a_cell_smaller_than_a_pixel_still_gets_its_pixel():
     # 0.1 px cells whose centres (300.2, 299.8) px are not near a pixel centre.
     points = np.array([[20.02, 20.02, 0.0]])
-    placement = _placement(targets=[box(0, 0, 40, 40)], points=points, cell=0.01)
-    img = rp.render_rgb(placement, width_px=600)
+    result = _result(targets=[box(0, 0, 40, 40)], points=points, cell=0.01)
+    img = rp.render_rgb(result, width_px=600)
     red = np.all(img == rp.UNCOVERED, axis=2)
     assert np.argwhere(red).tolist() == [[299, 300]] == [list(_px60(20.02, 20.02))]
 
 
 def test_an_empty_placement_renders_a_framed_blank():
-    img = rp.render_rgb(_placement(targets=[]), width_px=50, margin_m=0.0)
+    img = rp.render_rgb(_result(targets=[]), width_px=50, margin_m=0.0)
     assert img.shape == (1, 50, 3)
     assert np.all(img == rp.FRAME)
-    no_axis = _placement(targets=[], points=np.zeros(0), covered=np.zeros(0, np.int32))
+    no_axis = _result(targets=[], points=np.zeros(0), covered=np.zeros(0, np.int32))
     img = rp.render_rgb(no_axis, width_px=50, margin_m=10.0)
     assert img.shape == (50, 50, 3)
     assert np.all(img[1:30, 1:-1] == rp.BACKGROUND)  # the scale bar is below row 30
 
 
 def test_points_and_counts_must_match():
-    placement = _placement(
+    result = _result(
         targets=[box(0, 0, 1, 1)], points=np.zeros((3, 3)), covered=np.zeros(2, np.int32)
     )
     with pytest.raises(ValueError):
-        rp.render_png(placement)
-
-
-def test_report_png_imports_no_blender():
-    code = (
-        "import sys, autoscoop_blender.core.report_png; "
-        "sys.exit(bool({'bpy', 'mathutils', 'bmesh'} & set(sys.modules)))"
-    )
-    subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT)
+        rp.render_png(result)

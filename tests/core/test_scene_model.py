@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from autoscoop_blender.core.errors import SceneContractError
-from autoscoop_blender.core.scene_model import area_from_rings, choose_origin
+from autoscoop_blender.core.model.scene import area_from_rings, choose_origin
 
 
 def ring(x0, y0, x1, y1, z=0.0):

@@ -5,8 +5,8 @@ import json
 import pytest
 
 from autoscoop_blender.core.errors import InputError
-from autoscoop_blender.core.sensor_file import parse_sensors, read_sensors
-from autoscoop_blender.core.sensors import PAPER_CAMERA, ROADSIDE_LIDAR
+from autoscoop_blender.core.model.sensors import PAPER_CAMERA, ROADSIDE_LIDAR
+from autoscoop_blender.io.sensor_file import parse_sensors, read_sensors
 
 
 def test_defaults_and_per_sensor_models():

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from autoscoop_blender.core.errors import InputError
-from autoscoop_blender.core.raycast import BoxCaster
-from autoscoop_blender.core.sensors import PAPER_CAMERA, PRESETS, SensorModel, frame
+from autoscoop_blender.core.geom.raycast import BoxCaster
+from autoscoop_blender.core.model.sensors import PAPER_CAMERA, PRESETS, SensorModel, frame
 
 
 def test_frame_is_right_handed_and_points_where_asked():

@@ -34,7 +34,7 @@ from typing import Any, NamedTuple
 
 import pytest
 
-from headless import build_extension as bx
+from headless.devtools import build_extension as bx
 from tests.conftest import ROOT
 
 ADDON = "bl_ext.user_default.autoscoop"
@@ -174,8 +174,8 @@ def test_installed_copy_imports_bundled_wheels(installed: Installed) -> None:
 def test_installed_core_computes_coverage(installed: Installed) -> None:
     footprint = run_in_installed(
         """
-        from bl_ext.user_default.autoscoop.core.optimize import reference_footprint_m2
-        from bl_ext.user_default.autoscoop.core.sensors import PAPER_CAMERA
+        from bl_ext.user_default.autoscoop.core.coverage.reference import reference_footprint_m2
+        from bl_ext.user_default.autoscoop.core.model.sensors import PAPER_CAMERA
         result = reference_footprint_m2(PAPER_CAMERA)
         """,
         installed.env,

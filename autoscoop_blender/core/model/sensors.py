@@ -103,7 +103,8 @@ class SensorModel:
 
     # --- files -------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
-        """The stable file form (keys as in DESIGN.md)."""
+        """The stable file form: the keys of the README's sensor models (kind, h_fov_deg,
+        ..., min_density_per_m2, pattern), as sensors files and results write them."""
         return asdict(self)
 
     @classmethod
