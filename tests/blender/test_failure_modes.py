@@ -11,9 +11,9 @@ import pytest
 from autoscoop_blender.core.coverage.base import place
 from autoscoop_blender.core.coverage.targeted import TargetedEvaluator
 from autoscoop_blender.core.evaluate import evaluate_layout
-from autoscoop_blender.core.settings import CoverageSettings
 from autoscoop_blender.core.geom.grid import GroundGrid
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA
+from autoscoop_blender.core.settings import CoverageSettings
 from autoscoop_blender.io.sensor_file import parse_sensors
 from autoscoop_blender.scene.bvh import BVHCaster
 from autoscoop_blender.scene.extract import extract_scene
