@@ -19,6 +19,8 @@ import numpy as np
 
 from autoscoop_blender.core.errors import InputError
 from autoscoop_blender.core.model.scene import SceneModel
+from autoscoop_blender.core.model.sensors import SensorModel
+from autoscoop_blender.core.settings import OptimizeSettings, from_mapping
 
 NAME = "checkpoint.jsonl"
 
@@ -36,17 +38,35 @@ def scene_fingerprint(scene: SceneModel) -> str:
     return h.hexdigest()[:16]
 
 
-class Checkpoint:
-    """Append-only JSON-lines file in the output folder."""
+def checkpoint_header(
+    scene: SceneModel, model: SensorModel, settings: OptimizeSettings
+) -> dict[str, Any]:
+    """What a run's answer depends on: the scene (its fingerprint), model and settings."""
+    return {
+        "scene": scene.source,
+        "scene_fingerprint": scene_fingerprint(scene),
+        "model": model.to_dict(),
+        "settings": settings.to_dict(),
+    }
 
-    def __init__(
-        self, out_dir: Path, header: dict[str, Any], default_settings: dict[str, Any] | None = None
-    ) -> None:
-        """``default_settings``: every setting's default; a checkpoint written before a
-        setting existed ran as its default does, so a missing key reads as the default."""
+
+def _settings(stored: Any) -> OptimizeSettings | None:
+    """Settings as recorded in a header, read through the schema: a setting missing
+    from an older checkpoint ran as its default does, so it reads as the default (at
+    any depth). None when they cannot be read (a setting since removed)."""
+    try:
+        return from_mapping(OptimizeSettings, stored, "checkpoint")
+    except InputError:
+        return None
+
+
+class Checkpoint:
+    """Append-only JSON-lines file in the output folder; ``header`` as made by
+    ``checkpoint_header``."""
+
+    def __init__(self, out_dir: Path, header: dict[str, Any]) -> None:
         self.path = out_dir / NAME
         self.header = header
-        self.default_settings = default_settings or {}
 
     def start(self) -> None:
         """Begin a fresh checkpoint (any old one is replaced)."""
@@ -66,14 +86,15 @@ class Checkpoint:
         if not parsed:
             raise InputError(f"{self.path}: empty checkpoint")
         header, records = parsed[0], parsed[1:]
-        stored = dict(header)
-        stored["settings"] = {**self.default_settings, **header.get("settings", {})}
-        for key, what in (
-            ("scene_fingerprint", "a different scene"),
-            ("model", "a different model"),
-            ("settings", "different settings"),
-        ):
-            if stored.get(key) != self.header[key]:
+        differs = {
+            "a different scene": header.get("scene_fingerprint")
+            != self.header["scene_fingerprint"],
+            "a different model": header.get("model") != self.header["model"],
+            "different settings": _settings(header.get("settings", {}))
+            != _settings(self.header["settings"]),
+        }
+        for what, differ in differs.items():
+            if differ:
                 raise InputError(
                     f"{self.path}: made with {what}; run without --resume to start again"
                 )

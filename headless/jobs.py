@@ -25,7 +25,7 @@ from autoscoop_blender.io.reports import (
     sensors_geojson,
 )
 from autoscoop_blender.io.sensor_file import read_sensors
-from headless.checkpoint import Checkpoint, scene_fingerprint
+from headless.checkpoint import Checkpoint, checkpoint_header
 from headless.files import csv_text, json_text, load_scene, write_files
 from headless.paths import SAMPLES
 from headless.progress import ProgressBar
@@ -66,16 +66,7 @@ def optimize(args: argparse.Namespace) -> int:
     scene, make_caster = load_scene(args.scene or default_scene(), model.range_m)
     for w in scene.warnings:
         print(f"warning: {w}", file=sys.stderr)
-    checkpoint = Checkpoint(
-        out_dir,
-        {
-            "scene": scene.source,
-            "scene_fingerprint": scene_fingerprint(scene),
-            "model": model.to_dict(),
-            "settings": settings.to_dict(),
-        },
-        default_settings=OptimizeSettings().to_dict(),
-    )
+    checkpoint = Checkpoint(out_dir, checkpoint_header(scene, model, settings))
     resume = checkpoint.resume() if args.resume else []
     if not args.resume:
         checkpoint.start()

@@ -76,7 +76,12 @@ def settings_from(props: Any) -> OptimizeSettings:
         table = data
         for group in groups:
             table = table.setdefault(group, {})
-        table[name] = getattr(props, setting.prop_name)
+        value = getattr(props, setting.prop_name)
+        if setting.kind is float:
+            # Blender keeps float properties in single precision (0.97 reads back as
+            # 0.9700000286): the value as typed has at most 7 significant digits.
+            value = float(f"{value:.7g}")
+        table[name] = value
     return OptimizeSettings.from_mapping(data, "AutoSCOOP panel")
 
 

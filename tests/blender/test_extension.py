@@ -296,3 +296,31 @@ def test_result_toggles_hide_groups():
     assert not groups["AutoSCOOP Sensors"].hide_viewport
     props.show_frusta = True
     assert not groups["AutoSCOOP Frusta"].hide_viewport
+
+
+def test_panel_properties_come_from_the_settings_schema():
+    """Every knob with a panel label is a property of the settings group, with the
+    schema's default, limits, help and choices; the panel reads back into settings."""
+    from autoscoop_blender.core.settings import PANEL_SETTINGS, ESParams, OptimizeSettings
+
+    rna = bpy.types.Scene.bl_rna.properties["autoscoop"].fixed_type.properties
+    for s in PANEL_SETTINGS:
+        prop = rna[s.prop_name]
+        assert prop.name == s.knob.label and prop.description.lower() == s.knob.help.lower()
+        if s.knob.choices:
+            assert [i.identifier for i in prop.enum_items] == [c[0] for c in s.knob.choices]
+            assert prop.default == s.default
+            continue
+        assert prop.default == pytest.approx(s.default)  # float properties are float32
+        if s.knob.lo is not None:
+            assert prop.hard_min == pytest.approx(s.knob.lo)
+        if s.knob.hi is not None:
+            assert prop.hard_max == pytest.approx(s.knob.hi)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    props = bpy.context.scene.autoscoop
+    # Read back as typed, not as Blender's single precision keeps them (0.97, 0.2).
+    assert pipeline.settings_from(props) == OptimizeSettings()
+    props.es_mu, props.optimizer, props.seed = 7, "greedy", 3
+    settings = pipeline.settings_from(props)
+    assert settings.es == ESParams(mu=7) and settings.optimizer == "greedy" and settings.seed == 3
+    assert pipeline.coverage_settings_from(props).grid_m == props.grid_m

@@ -4,12 +4,14 @@ independent recomputation, the paper-faithful pipeline, checkpoints and resume."
 import csv
 import json
 import zlib
+from dataclasses import replace
 
 import bpy
 import pytest
 
 from autoscoop_blender import names
 from autoscoop_blender.core.errors import InputError
+from autoscoop_blender.core.settings import ESParams, OptimizeSettings
 from headless.checkpoint import Checkpoint
 from tests.cli.conftest import SAMPLES, run_headless
 
@@ -155,14 +157,22 @@ def test_greedy_optimizer_from_the_command_line(tmp_path):
 
 
 def test_checkpoint_from_before_a_setting_existed_resumes_as_its_default(tmp_path):
-    now = {"optimizer": "es", "seed": 0}
-    header = {"scene_fingerprint": "f", "model": {"kind": "camera"}, "settings": now}
-    old = dict(header, settings={"seed": 0})  # written before "optimizer" was a setting
-    Checkpoint(tmp_path, old).start()
-    Checkpoint(tmp_path, old).append({"n": 1})
-    defaults = {"optimizer": "es", "seed": 0}
-    assert Checkpoint(tmp_path, header, defaults).resume() == [{"n": 1}]
-    # A run asking for another optimizer is not the one in the checkpoint.
-    other = dict(header, settings={"optimizer": "greedy", "seed": 0})
-    with pytest.raises(InputError, match="different settings"):
-        Checkpoint(tmp_path, other, defaults).resume()
+    """The header's settings are read through the schema: a key missing from an older
+    checkpoint, at the top or in a table, reads as its default."""
+    header = {
+        "scene_fingerprint": "f",
+        "model": {"kind": "camera"},
+        "settings": OptimizeSettings().to_dict(),
+    }
+    old_settings = OptimizeSettings().to_dict()
+    del old_settings["optimizer"], old_settings["es"]["decay"]  # not settings back then
+    Checkpoint(tmp_path, dict(header, settings=old_settings)).start()
+    Checkpoint(tmp_path, header).append({"n": 1})
+    assert Checkpoint(tmp_path, header).resume() == [{"n": 1}]
+    # A run asking for another optimizer, or another decay, is not the one recorded.
+    for other in (
+        replace(OptimizeSettings(), optimizer="greedy"),
+        OptimizeSettings(es=ESParams(decay=0.9)),
+    ):
+        with pytest.raises(InputError, match="different settings"):
+            Checkpoint(tmp_path, dict(header, settings=other.to_dict())).resume()
