@@ -95,6 +95,9 @@ class FixedSensors:
         candidate's cost does not grow with the number of sensors fixed so far. Each
         bucket keeps the positions of its 3 x 3 neighbourhood as one array until a
         sensor is fixed in it: candidates outnumber fixed sensors a thousandfold.
+        Hand-written because it is faster: ``scipy.spatial.cKDTree.query_ball_point``
+        with the same order and filter gives the same arrays but took 12.0 us a call
+        against 5.2 us here (70 fixed masts, 1,400 queries after each; 2026-11-23).
         """
         if self._bucket_m != radius:
             self._bucket_m, self._buckets, self._around, self._indexed = radius, {}, {}, 0
