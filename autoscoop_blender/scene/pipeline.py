@@ -176,7 +176,7 @@ class OptimizeJob:
         for k in range(self._shown, len(self.run.sensors)):
             p = self.run.sensors[k].pose
             xyz = self.scene_model.to_world(p.position)
-            cam = sensor_camera(k + 1, xyz, p.pitch_deg, p.yaw_deg, self.model)
+            cam = sensor_camera(k + 1, xyz, p.pitch_deg, p.yaw_deg, self.run.problem.model)
             cam[names.IGNORE_PROP] = True
             live.objects.link(cam)
         self._shown = len(self.run.sensors)
