@@ -163,6 +163,8 @@ def knob_property(setting: Setting) -> Any:
     if k.soft is not None:
         limits["soft_min"], limits["soft_max"] = k.soft
     if setting.kind is int:
+        # Blender's integer properties are 32-bit: a wider limit is the type's own.
+        limits = {k: v for k, v in limits.items() if abs(v) < 2**31}
         return IntProperty(default=setting.default, **limits, **common)
     if setting.name.endswith("_m"):
         common["unit"] = "LENGTH"

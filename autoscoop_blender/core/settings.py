@@ -78,7 +78,11 @@ class Knob:
         return "a finite number"
 
     def within(self, value: float) -> bool:
-        if not math.isfinite(value):
+        """Whether a number is finite and within the limits."""
+        try:
+            if not math.isfinite(value):
+                return False
+        except OverflowError:  # an integer too large for a float
             return False
         if self.lo is not None and (value < self.lo or (self.lo_open and value == self.lo)):
             return False
@@ -168,8 +172,8 @@ def settings_schema(cls: type, prefix: str = "") -> Iterator[Setting]:
 
 def from_mapping(cls: type[T], data: Mapping[str, Any], label: str) -> T:
     """Settings of ``cls`` from a mapping (a TOML document): its defaults replaced by
-    ``data``, nested groups as tables; InputError for unknown keys, wrong types and
-    values out of range, naming ``label``."""
+    ``data``, nested groups as tables; InputError for unknown keys and wrong types,
+    naming ``label`` (``validated`` then checks the limits)."""
     if not isinstance(data, Mapping):
         raise InputError(f"{label}: must be a table")
     hints = typing.get_type_hints(cls)
@@ -346,7 +350,9 @@ class OptimizeSettings(CoverageSettings):
         hi=1.0,
         label="Coverage goal",
     )
-    seed: int = knob(0, "random seed (same seed, same answer)", lo=0, flag="--seed", label="Seed")
+    seed: int = knob(
+        0, "random seed (same seed, same answer)", lo=0, hi=2**63 - 1, flag="--seed", label="Seed"
+    )
     position_step_m: float | None = knob(
         None, "lattice of mast positions, m (default: twice the grid)", lo=0.0, lo_open=True
     )
