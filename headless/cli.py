@@ -41,10 +41,12 @@ def add_knob_options(parser: argparse.ArgumentParser, cls: type, overrides: bool
         if k.choices:
             kw["choices"] = [c[0] for c in k.choices]
             kw["help"] += ": " + "; ".join(f"{value}: {text}" for value, _, text in k.choices)
+        elif setting.kind is bool:  # a switch that turns the knob on
+            kw["action"], kw["const"] = "store_const", True
         else:
             kw["type"] = setting.kind
         kw["default"] = None if overrides else setting.default
-        if setting.default is not None:
+        if setting.default is not None and setting.kind is not bool:
             kw["help"] += f" (default {setting.default})"
         parser.add_argument(k.flag, **kw)
 

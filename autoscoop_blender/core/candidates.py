@@ -71,7 +71,11 @@ class CandidateSet:
 
 def build_candidates(problem: Problem) -> Generator[int, None, CandidateSet]:
     """The problem's candidate set (see the module docstring); yields the number of
-    positions done every ``POSITIONS_PER_REPORT`` positions."""
+    positions done every ``POSITIONS_PER_REPORT`` positions. Built once per problem:
+    later calls return the same set (``Problem.candidates``)."""
+    if problem.candidates is not None:
+        cached: CandidateSet = problem.candidates
+        return cached
     models = (problem.model,)
     positions = problem.space.positions
     angles = tuple(orientations(m.pitch_min_deg, m.pitch_max_deg) for m in models)
@@ -100,7 +104,7 @@ def build_candidates(problem: Problem) -> Generator[int, None, CandidateSet]:
         ),
         shape=(len(cols), problem.n_targets),
     )
-    return CandidateSet(
+    problem.candidates = CandidateSet(
         positions=positions,
         angles=angles,
         models=models,
@@ -109,3 +113,4 @@ def build_candidates(problem: Problem) -> Generator[int, None, CandidateSet]:
         model=np.array(cand_model, dtype=np.int64),
         matrix=matrix,
     )
+    return problem.candidates

@@ -14,6 +14,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 from scipy.cluster.hierarchy import fcluster, linkage
+from scipy.spatial.distance import pdist
 
 F64 = NDArray[np.float64]
 
@@ -29,7 +30,9 @@ def group_positions(xy: F64, join_m: float) -> NDArray[np.int_]:
         return np.zeros(0, dtype=int)
     if n == 1:
         return np.zeros(1, dtype=int)
-    raw = fcluster(linkage(xy, method="complete"), t=join_m, criterion="distance")
+    # Distances first: two sensors at one spot would otherwise look like a distance
+    # matrix to scipy (the same numbers: linkage computes these distances itself).
+    raw = fcluster(linkage(pdist(xy), method="complete"), t=join_m, criterion="distance")
     order: dict[int, int] = {}
     return np.array([order.setdefault(int(r), len(order)) for r in raw])
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 import shapely
@@ -130,6 +131,8 @@ class Problem:
         self.goal = math.ceil(settings.rho * self.grid.n_targets)
         self.max_sensors = settings.max_sensors or self.grid.n_targets
         self._mast: dict[tuple[float, float], tuple[float, float]] = {}
+        # The candidate set, once someone built it (``candidates.build_candidates``).
+        self.candidates: Any = None
 
     @property
     def n_targets(self) -> int:

@@ -28,6 +28,7 @@ from .geom.drape import drape
 from .geom.grid import GroundGrid
 from .model.scene import Area, SceneModel
 from .model.sensors import SensorModel
+from .optimize.base import PlanBound
 
 F64 = NDArray[np.float64]
 I32 = NDArray[np.int32]
@@ -133,6 +134,7 @@ class Provenance:
     warnings: tuple[str, ...] = ()
     settings: Any = None
     model: SensorModel | None = None
+    bound: PlanBound | None = None
 
 
 def finish_layout(
@@ -208,6 +210,8 @@ def finish_layout(
         wall_s=time.perf_counter() - how.t0,
         rays_cast=sight + drop + extra_rays,
     )
+    if hasattr(how.settings, "objective"):
+        metrics.update(objective_metrics(len(sensors), len(masts), how.settings, how.bound))
 
     def world(areas):
         return tuple((a.name, shapely.affinity.translate(a.geometry, ox, oy)) for a in areas)
@@ -281,6 +285,42 @@ def layout_metrics(
         "wall_s": round(wall_s, 2),
         "rays_cast": rays_cast,
     }
+
+
+def objective_metrics(
+    sensors: int, masts: int, settings: Any, bound: PlanBound | None
+) -> dict[str, Any]:
+    """The plan's objective and, when one was proven, the lower bound on it.
+
+    cost = mast_cost x masts + sensor_cost x sensors; objective: the value of the
+    settings' objective (cost, sensors or masts); lower_bound: no plan in
+    ``bound_scope`` has a lower objective; gap = (objective - lower_bound) / objective;
+    sensors_lower_bound, masts_lower_bound: the bounds on each part; lp_bound: the LP
+    relaxation's bound on the sensors, before rounding up.
+    """
+    cost = settings.mast_cost * masts + settings.sensor_cost * sensors
+    value = {"cost": cost, "sensors": sensors, "masts": masts}[settings.objective]
+    out: dict[str, Any] = {
+        "cost": round(cost, 4),
+        "objective": round(float(value), 4),
+        "lower_bound": None,
+        "gap": None,
+        "sensors_lower_bound": None,
+        "masts_lower_bound": None,
+        "lp_bound": None,
+        "bound_scope": None,
+    }
+    if bound is not None:
+        lower = bound.objective(settings.objective, settings.mast_cost, settings.sensor_cost)
+        out.update(
+            lower_bound=round(lower, 4),
+            gap=round((value - lower) / value, 4) if value > 0 else 0.0,
+            sensors_lower_bound=bound.sensors,
+            masts_lower_bound=bound.masts,
+            lp_bound=round(bound.lp, 4),
+            bound_scope=bound.scope,
+        )
+    return out
 
 
 def area_at(scene: SceneModel, x: float, y: float) -> Area | None:

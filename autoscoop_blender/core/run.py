@@ -30,6 +30,7 @@ from .model.sensors import SensorModel, SensorPose
 from .optimize.base import FixedSensor, Optimizer, Progress, Solution, newly_covered
 from .optimize.es import EvolutionStrategy
 from .optimize.greedy import Greedy
+from .optimize.lp import LPPlanner
 from .optimize.parallel import WorkerPool
 from .problem import Problem
 from .result import Provenance, Result, finish_layout
@@ -71,6 +72,8 @@ class Run:
     def _optimizer(self, make_caster: CasterFactory, workers: int) -> Optimizer:
         if self.settings.optimizer == "greedy":
             return Greedy()
+        if self.settings.optimizer == "lp":
+            return LPPlanner()
         pool = None
         if workers > 1:
             pool = WorkerPool(self.problem.worker_inputs(), make_caster, workers)
@@ -188,5 +191,6 @@ class Run:
             warnings=p.scene.warnings,
             settings=self.settings,
             model=p.model,
+            bound=s.bound,
         )
         return finish_layout(p.scene, p.grid, coverages, mast_of, how, p.probe.extra_rays)

@@ -40,7 +40,19 @@ METHODS = (
 OPTIMIZERS = (
     ("es", "Evolution strategy", "The paper's: one sensor at a time, each by an ES"),
     ("greedy", "Greedy", "Set cover over positions x orientations: fewer sensors"),
+    (
+        "lp",
+        "LP bound and plan",
+        "Column generation for a proven lower bound, then LP rounding and local search",
+    ),
 )
+OBJECTIVES = (
+    ("cost", "Cost", "mast_cost per mast plus sensor_cost per sensor"),
+    ("sensors", "Sensors", "The fewest sensors"),
+    ("masts", "Masts", "The fewest masts (then the fewest sensors on them)"),
+)
+# Optimizers that work on the candidate set (positions x orientations).
+CANDIDATE_OPTIMIZERS = ("greedy", "lp")
 
 # tau of Eq. 2 below this is treated as zero (see ``FitnessParams.band_m``).
 TAU_FLOOR = 0.05
@@ -359,13 +371,43 @@ class OptimizeSettings(CoverageSettings):
     patience: int = knob(2, "searches in a row that add nothing before giving up", lo=1)
     max_sensors: int | None = knob(None, "stop at this many sensors (default: no cap)", lo=1)
     cache: bool = knob(True, "targeted: keep sight rays per mast position (same answers)")
+    objective: str = knob(
+        "cost", "what a plan minimizes", choices=OBJECTIVES, flag="--objective", label="Objective"
+    )
+    mast_cost: float = knob(
+        3.0,
+        "cost of a mast (foundation, power, fibre), in sensor units",
+        lo=0.0,
+        flag="--mast-cost",
+    )
+    sensor_cost: float = knob(1.0, "cost of a sensor", lo=0.0, flag="--sensor-cost")
+    bound: bool = knob(
+        False,
+        "also prove a lower bound on the objective over the candidate set (the lp optimizer "
+        "always does)",
+        flag="--bound",
+    )
+    time_limit_s: float | None = knob(
+        None,
+        "lp: stop the search after this many seconds with the best plan and its proven gap",
+        lo=0.0,
+        lo_open=True,
+        flag="--time-limit",
+    )
     es: ESParams = field(default_factory=ESParams)
     fitness: FitnessParams = field(default_factory=FitnessParams)
 
     def validated(self) -> OptimizeSettings:
         check_all(self)
-        if self.optimizer == "greedy" and self.method != "targeted":
-            raise InputError("the greedy optimizer needs the targeted method")
+        if self.method != "targeted" and (self.optimizer in CANDIDATE_OPTIMIZERS or self.bound):
+            what = (
+                "a bound"
+                if self.optimizer not in CANDIDATE_OPTIMIZERS
+                else f"the {self.optimizer} optimizer"
+            )
+            raise InputError(f"{what} needs the targeted method")
+        if self.objective != "sensors" and self.mast_cost == self.sensor_cost == 0:
+            raise InputError("mast_cost and sensor_cost are both 0: nothing to minimize")
         return self
 
     @classmethod

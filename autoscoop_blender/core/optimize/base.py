@@ -18,6 +18,7 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from ..candidates import CandidateSet, build_candidates
 from ..model.sensors import SensorPose
 from ..problem import Problem
 
@@ -43,7 +44,9 @@ class FixedSensor:
 class Progress:
     """Where a run is: for progress bars, status lines and the modal operator.
 
-    fixed: the sensor just fixed (phase "fixed"), else None.
+    fixed: the sensor just fixed (phase "fixed"), else None. bound, best: the lower
+    bound on the objective proven so far and the best plan's objective, when the
+    optimizer knows them (the lp optimizer).
     """
 
     phase: str  # "search" | "fixed" | "masts" | "report" | "done"
@@ -53,11 +56,39 @@ class Progress:
     epoch: int
     evaluations: int
     fixed: FixedSensor | None = None
+    bound: float | None = None
+    best: float | None = None
 
     @property
     def fraction(self) -> float:
         """Progress towards the goal in [0, 1]."""
         return 1.0 if self.phase == "done" else min(1.0, self.coverage / self.rho)
+
+
+@dataclass(frozen=True)
+class PlanBound:
+    """What no plan on the candidate set can beat, proven (see ``bound.py``).
+
+    sensors: the fewest sensors any plan needs; masts: the fewest masts (None: not
+    proven); lp: the proven lower bound on the LP relaxation's value (sensors; equal
+    to it when the LP was solved to the end);
+    scope: over which plans the bound holds, in words.
+    """
+
+    sensors: int
+    masts: int | None
+    lp: float
+    scope: str
+
+    def objective(self, objective: str, mast_cost: float, sensor_cost: float) -> float:
+        """The bound on ``objective``: sensors, masts, or cost = mast_cost x masts +
+        sensor_cost x sensors (each part at its own bound)."""
+        masts = self.masts or 0
+        if objective == "sensors":
+            return float(self.sensors)
+        if objective == "masts":
+            return float(masts)
+        return mast_cost * masts + sensor_cost * self.sensors
 
 
 @dataclass
@@ -67,7 +98,8 @@ class Solution:
     covered: (N,) bool over the grid's target points. evaluations, sight_rays: what
     the optimizer spent (pose evaluations, sight rays cast by them). state: what the
     optimizer needs to go on after the last sensor exactly as it would have (the ES:
-    its random generator's state); JSON-ready, written to checkpoints.
+    its random generator's state); JSON-ready, written to checkpoints. bound: what no
+    plan can beat, when it was proven.
     """
 
     covered: NDArray[np.bool_]
@@ -76,6 +108,7 @@ class Solution:
     evaluations: int = 0
     sight_rays: int = 0
     state: dict[str, Any] = field(default_factory=dict)
+    bound: PlanBound | None = None
     n_covered: int = field(init=False)
 
     def __post_init__(self) -> None:
@@ -93,10 +126,24 @@ class Solution:
         self.n_covered += sensor.new_points
 
     def progress(
-        self, phase: str, rho: float, epoch: int = 0, fixed: FixedSensor | None = None
+        self,
+        phase: str,
+        rho: float,
+        epoch: int = 0,
+        fixed: FixedSensor | None = None,
+        bound: float | None = None,
+        best: float | None = None,
     ) -> Progress:
         return Progress(
-            phase, len(self.sensors), self.coverage, rho, epoch, self.evaluations, fixed
+            phase,
+            len(self.sensors),
+            self.coverage,
+            rho,
+            epoch,
+            self.evaluations,
+            fixed,
+            bound,
+            best,
         )
 
 
@@ -118,3 +165,15 @@ class Optimizer(Protocol):
 def newly_covered(covered: NDArray[np.bool_], ordinals: NDArray[np.int64]) -> NDArray[np.int64]:
     """The ``ordinals`` (target points a pose covers) not in ``covered`` yet."""
     return ordinals[~covered[ordinals]]
+
+
+def candidates_of(problem: Problem, solution: Solution) -> Generator[Progress, None, CandidateSet]:
+    """The problem's candidate set, reporting progress while it is built."""
+    build = build_candidates(problem)
+    while True:
+        try:
+            next(build)
+        except StopIteration as done:
+            cands: CandidateSet = done.value
+            return cands
+        yield solution.progress("search", problem.rho)

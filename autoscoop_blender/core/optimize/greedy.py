@@ -15,9 +15,8 @@ from collections.abc import Generator
 import numpy as np
 from numpy.typing import NDArray
 
-from ..candidates import CandidateSet, build_candidates
 from ..problem import Problem
-from .base import FixedSensor, Progress, Solution, newly_covered
+from .base import FixedSensor, Progress, Solution, candidates_of, newly_covered
 
 # A candidate on a mast already used wins against a new mast that adds up to this
 # fraction more (0: only on ties).
@@ -41,7 +40,7 @@ class Greedy:
 
     def solve(self, problem: Problem, solution: Solution) -> Generator[Progress, None, Solution]:
         rho = problem.rho
-        cands = yield from _built(problem, solution)
+        cands = yield from candidates_of(problem, solution)
         if len(cands) == 0:
             solution.stop_reason = "no candidate pose covers any target point"
             return solution
@@ -76,15 +75,3 @@ class Greedy:
             yield solution.progress("fixed", rho, fixed=sensor)
         solution.stop_reason = f"reached rho = {rho:.0%} of the target"
         return solution
-
-
-def _built(problem: Problem, solution: Solution) -> Generator[Progress, None, CandidateSet]:
-    """The problem's candidate set, reporting progress while it is built."""
-    build = build_candidates(problem)
-    while True:
-        try:
-            next(build)
-        except StopIteration as done:
-            cands: CandidateSet = done.value
-            return cands
-        yield solution.progress("search", problem.rho)

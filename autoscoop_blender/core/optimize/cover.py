@@ -1,0 +1,169 @@
+"""Partial set cover on the candidate set: the moves a plan is built and improved with.
+
+The instance: candidates (rows of the candidate matrix), target points (columns), and
+the goal: at least ``goal`` points covered. A ``Cover`` is a set of chosen candidates
+with the number of them covering each point. The moves, each cheap enough to repeat
+thousands of times on 130,000 candidates:
+
+* ``complete``: add the candidate that covers the most points still uncovered, until
+  the goal is met (greedy; ``weight`` biases it, e.g. towards an LP solution);
+* ``prune``: drop chosen candidates whose points stay covered well enough without them
+  (the one whose removal loses the fewest points first);
+* ``swap_two_for_one``: replace two chosen candidates by one of a pool that covers
+  what only those two covered (less the slack over the goal);
+* ``improve``: prune and swap until neither helps.
+
+They are hand-written because no library does partial set cover moves on sparse
+matrices; the LP behind them is HiGHS (``bound.py``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import sparse
+
+F32 = NDArray[np.float32]
+I64 = NDArray[np.int64]
+
+
+@dataclass
+class CoverInstance:
+    """matrix: (C, N) CSR, 1 where candidate c covers point n; goal: points to cover."""
+
+    matrix: sparse.csr_matrix
+    goal: int
+    _by_point: sparse.csc_matrix | None = field(default=None, repr=False)
+
+    @property
+    def n_points(self) -> int:
+        return int(self.matrix.shape[1])
+
+    def covers(self, c: int) -> I64:
+        """The points candidate ``c`` covers."""
+        m = self.matrix
+        return m.indices[m.indptr[c] : m.indptr[c + 1]]
+
+    @property
+    def by_point(self) -> sparse.csc_matrix:
+        """The matrix by columns: which candidates cover a point (built once)."""
+        if self._by_point is None:
+            self._by_point = self.matrix.tocsc()
+        return self._by_point
+
+
+class Cover:
+    """Chosen candidates and, per point, how many of them cover it."""
+
+    def __init__(self, inst: CoverInstance, chosen: list[int] | tuple[int, ...] = ()) -> None:
+        self.inst = inst
+        self.chosen: list[int] = []
+        self.count = np.zeros(inst.n_points, dtype=np.int32)
+        self.n_covered = 0
+        for c in chosen:
+            self.add(c)
+
+    @property
+    def slack(self) -> int:
+        """Covered points beyond the goal (negative: short of it)."""
+        return self.n_covered - self.inst.goal
+
+    def add(self, c: int) -> None:
+        pts = self.inst.covers(c)
+        self.n_covered += int(np.count_nonzero(self.count[pts] == 0))
+        self.count[pts] += 1
+        self.chosen.append(int(c))
+
+    def remove(self, c: int) -> None:
+        pts = self.inst.covers(c)
+        self.count[pts] -= 1
+        self.n_covered -= int(np.count_nonzero(self.count[pts] == 0))
+        self.chosen.remove(int(c))
+
+    def exclusive(self, c: int) -> int:
+        """Points only chosen candidate ``c`` covers (lost if it is removed)."""
+        return int(np.count_nonzero(self.count[self.inst.covers(c)] == 1))
+
+
+def complete(cover: Cover, pool: I64, weight: F32 | None = None) -> Cover:
+    """Add candidates of ``pool`` until the goal is met: each time the one covering
+    the most uncovered points (times ``weight``, per pool entry, if given). Stops early
+    when no candidate adds a point."""
+    inst = cover.inst
+    sub = inst.matrix[pool]
+    by_point = sub.tocsc()
+    gains = np.asarray(sub @ (cover.count == 0).astype(np.float32)).ravel()
+    while cover.slack < 0:
+        score = gains if weight is None else gains * weight
+        k = int(np.argmax(score))
+        if gains[k] <= 0:
+            break
+        c = int(pool[k])
+        new = inst.covers(c)
+        new = new[cover.count[new] == 0]
+        cover.add(c)
+        # Points covered now add nothing to any candidate any more.
+        gains -= np.asarray(by_point[:, new].sum(axis=1)).ravel()
+    return cover
+
+
+def prune(cover: Cover) -> Cover:
+    """Drop chosen candidates while the goal stays met: the one that loses the fewest
+    points first, as long as that is within the slack."""
+    while cover.chosen:
+        losses = np.array([cover.exclusive(c) for c in cover.chosen])
+        k = int(np.argmin(losses))
+        if losses[k] > cover.slack:
+            break
+        cover.remove(cover.chosen[k])
+    return cover
+
+
+def swap_two_for_one(cover: Cover, pool: I64, by_point: sparse.csr_matrix | None = None) -> bool:
+    """Replace two chosen candidates by one from ``pool`` (or by none) keeping the goal;
+    True when a swap was made. Tries pairs in order of how few points they alone cover.
+    ``by_point``: the pool's matrix transposed to rows of points (made if not given).
+    """
+    inst = cover.inst
+    if by_point is None:
+        by_point = pool_by_point(inst, pool)
+    chosen = list(cover.chosen)
+    alone = {c: cover.exclusive(c) for c in chosen}
+    pairs = sorted(
+        ((a, b) for i, a in enumerate(chosen) for b in chosen[i + 1 :]),
+        key=lambda p: alone[p[0]] + alone[p[1]],
+    )
+    for a, b in pairs:
+        pa, pb = inst.covers(a), inst.covers(b)
+        both = np.union1d(pa, pb)
+        left = cover.count[both] - np.isin(both, pa) - np.isin(both, pb)
+        lost = both[left == 0]
+        need = len(lost) - cover.slack
+        if need <= 0:
+            cover.remove(a)
+            cover.remove(b)
+            return True
+        gains = np.asarray(by_point[lost].sum(axis=0)).ravel()
+        k = int(np.argmax(gains))
+        if gains[k] >= need:
+            cover.remove(a)
+            cover.remove(b)
+            cover.add(int(pool[k]))
+            return True
+    return False
+
+
+def pool_by_point(inst: CoverInstance, pool: I64) -> sparse.csr_matrix:
+    """(N, len(pool)) CSR: for each point, the pool candidates that cover it."""
+    return inst.matrix[pool].T.tocsr()
+
+
+def improve(cover: Cover, pool: I64) -> Cover:
+    """``prune`` and ``swap_two_for_one`` until neither makes the cover smaller."""
+    prune(cover)
+    by_point = pool_by_point(cover.inst, pool)
+    while swap_two_for_one(cover, pool, by_point):
+        prune(cover)
+    return cover

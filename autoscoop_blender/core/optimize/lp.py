@@ -1,0 +1,232 @@
+"""The ``lp`` optimizer: a proven lower bound, and a plan close to it.
+
+On the problem's candidate set (``core/candidates.py``):
+
+1. a greedy plan gives the first columns and a first incumbent;
+2. the LP relaxation by column generation (``bound.cover_lp``) and, in a second
+   thread, the fewest masts by a MILP over positions (``bound.site_cover``) prove
+   the lower bounds: sensors, masts, and cost = mast_cost x masts + sensor_cost x
+   sensors;
+3. plans are built from the LP: the candidates at or above a threshold of their LP
+   value, completed greedily from a pool (the restricted LP's columns and every
+   candidate whose reduced cost is within ``POOL_REDUCED_COST``), then improved by
+   pruning and two-for-one swaps (``cover.py``); a plan on the fewest masts (the
+   MILP's positions, the fewest sensors on them) joins them; the one that is best
+   for the objective wins.
+
+Deterministic (no random choice; the seed plays no part). ``time_limit_s`` stops the
+bounds where they are (still proven) and plans from what the LP has so far.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Generator, Iterator
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..candidates import CandidateSet
+from ..problem import Problem
+from .base import FixedSensor, PlanBound, Progress, Solution, candidates_of, newly_covered
+from .bound import LPProgress, LPSolution, SiteSolution, cover_lp, site_cover
+from .cover import Cover, CoverInstance, complete, improve
+
+I64 = NDArray[np.int64]
+
+# Candidates whose LP reduced cost is within this join the pool plans are built from.
+POOL_REDUCED_COST = 0.2
+# LP values at or above which a candidate is kept when rounding, one plan each.
+THRESHOLDS = (0.9, 0.7, 0.5, 0.3, 0.2)
+
+
+def instance(cands: CandidateSet, problem: Problem, covered: NDArray[np.bool_]) -> CoverInstance:
+    """The cover instance of what is left: the points not ``covered`` yet (columns of
+    the candidate matrix dropped) and the goal less what is covered."""
+    goal = problem.goal - int(np.count_nonzero(covered))
+    matrix = cands.matrix
+    if covered.any():
+        matrix = matrix[:, np.flatnonzero(~covered)].tocsr()
+    return CoverInstance(matrix, goal)
+
+
+def bound_scope(cands: CandidateSet, problem: Problem) -> str:
+    """Over which plans the bound holds, in words."""
+    ang = cands.angles[0]
+    pitches = len(np.unique(ang[:, 0]))
+    yaws = len(np.unique(ang[:, 1]))
+    return (
+        f"plans on the candidate set: {len(cands.positions)} mast positions on a "
+        f"{problem.space.step:g} m lattice x {yaws} yaws x {pitches} pitches; the "
+        f"{problem.grid.spacing:g} m target grid"
+    )
+
+
+def plan_cost(
+    cands: CandidateSet, chosen: list[int], objective: str, mc: float, sc: float
+) -> tuple[float, int]:
+    """(objective value, masts) of a plan of candidates, one mast per position used."""
+    masts = len(np.unique(cands.position[chosen])) if chosen else 0
+    if objective == "sensors":
+        return float(len(chosen)), masts
+    if objective == "masts":
+        return masts + len(chosen) * 1e-6, masts  # the fewest sensors break ties
+    return mc * masts + sc * len(chosen), masts
+
+
+def _both(
+    first: Generator[Any, None, Any], second: Generator[Any, None, Any]
+) -> Generator[Any, None, tuple[Any, Any]]:
+    """Drive two generators that yield while their solver works, side by side; yields
+    what they yield, returns both values."""
+    gens: list[Generator[Any, None, Any] | None] = [first, second]
+    values: list[Any] = [None, None]
+    try:
+        while any(g is not None for g in gens):
+            for k, g in enumerate(gens):
+                if g is None:
+                    continue
+                try:
+                    yield next(g)
+                except StopIteration as done:
+                    values[k], gens[k] = done.value, None
+    finally:
+        for g in gens:
+            if g is not None:
+                g.close()
+    return values[0], values[1]
+
+
+def prove_and_plan(
+    problem: Problem,
+    cands: CandidateSet,
+    inst: CoverInstance,
+    solution: Solution,
+    deadline: float | None,
+) -> Generator[Progress, None, tuple[list[int], PlanBound]]:
+    """The bounds and the best plan of candidates (see the module docstring)."""
+    s = problem.settings
+    every = np.arange(len(cands), dtype=np.int64)
+    greedy = complete(Cover(inst), every)
+    best_value = plan_cost(cands, greedy.chosen, s.objective, s.mast_cost, s.sensor_cost)[0]
+    lp_gen = cover_lp(
+        inst, np.ones(len(cands)), cands.position, np.array(greedy.chosen), deadline=deadline
+    )
+    site_gen = site_cover(inst, cands.position, len(cands.positions), deadline)
+    bound_so_far = 0.0
+    both = _both(lp_gen, site_gen)
+    while True:
+        try:
+            step = next(both)
+        except StopIteration as done:
+            lp, sites = done.value
+            break
+        if isinstance(step, LPProgress):
+            bound_so_far = step.bound
+        yield solution.progress("search", problem.rho, bound=bound_so_far, best=best_value)
+    bound = _plan_bound(lp, sites, cands, problem)
+    lower = bound.objective(s.objective, s.mast_cost, s.sensor_cost)
+    plans = [greedy.chosen]
+    for plan in (*_lp_plans(inst, lp), *_site_plans(inst, cands, sites)):
+        plans.append(plan)
+        best_value = min(
+            best_value, plan_cost(cands, plan, s.objective, s.mast_cost, s.sensor_cost)[0]
+        )
+        yield solution.progress("search", problem.rho, bound=lower, best=best_value)
+    best = min(plans, key=lambda p: plan_cost(cands, p, s.objective, s.mast_cost, s.sensor_cost))
+    return best, bound
+
+
+def _plan_bound(
+    lp: LPSolution, sites: SiteSolution, cands: CandidateSet, problem: Problem
+) -> PlanBound:
+    return PlanBound(
+        sensors=lp.integer_bound(),
+        masts=sites.bound,
+        lp=lp.bound,
+        scope=bound_scope(cands, problem),
+    )
+
+
+def _pool(lp: LPSolution) -> I64:
+    """The candidates plans are built from: the LP's, and those nearly as good."""
+    return np.union1d(lp.columns, np.flatnonzero(lp.reduced <= POOL_REDUCED_COST))
+
+
+def _lp_plans(inst: CoverInstance, lp: LPSolution) -> Iterator[list[int]]:
+    """Plans rounded from the LP at each threshold, completed and improved."""
+    pool = _pool(lp)
+    for threshold in THRESHOLDS:
+        kept = lp.columns[lp.x >= threshold - 1e-9]
+        cover = improve(complete(Cover(inst, tuple(int(c) for c in kept)), pool), pool)
+        if cover.slack >= 0:
+            yield cover.chosen
+
+
+def _site_plans(
+    inst: CoverInstance, cands: CandidateSet, sites: SiteSolution
+) -> Iterator[list[int]]:
+    """The fewest sensors on the fewest masts' positions (when the MILP found them)."""
+    if len(sites.sites) == 0:
+        return
+    pool = np.flatnonzero(np.isin(cands.position, sites.sites)).astype(np.int64)
+    cover = improve(complete(Cover(inst), pool), pool)
+    if cover.slack >= 0:
+        yield cover.chosen
+
+
+def in_gain_order(inst: CoverInstance, chosen: list[int]) -> list[int]:
+    """The plan's candidates ordered as greedy would fix them: most new points first."""
+    left = list(chosen)
+    covered = np.zeros(inst.n_points, dtype=bool)
+    out = []
+    while left:
+        gains = [int(np.count_nonzero(~covered[inst.covers(c)])) for c in left]
+        c = left.pop(int(np.argmax(gains)))
+        covered[inst.covers(c)] = True
+        out.append(c)
+    return out
+
+
+class LPPlanner:
+    """The ``lp`` optimizer (see the module docstring)."""
+
+    name = "lp"
+
+    def close(self) -> None:
+        pass
+
+    def solve(self, problem: Problem, solution: Solution) -> Generator[Progress, None, Solution]:
+        s = problem.settings
+        t0 = time.perf_counter()
+        deadline = None if s.time_limit_s is None else t0 + s.time_limit_s
+        cands = yield from candidates_of(problem, solution)
+        inst = instance(cands, problem, solution.covered)
+        if inst.goal <= 0:
+            solution.stop_reason = f"reached rho = {problem.rho:.0%} of the target"
+            return solution
+        chosen, bound = yield from prove_and_plan(problem, cands, inst, solution, deadline)
+        solution.bound = bound
+        for c in in_gain_order(inst, chosen):
+            if problem.reached(solution.n_covered):
+                break
+            pose = cands.pose(problem, c)
+            cov = problem.evaluate(pose)
+            solution.sight_rays += cov.rays
+            solution.evaluations += 1
+            newly = newly_covered(solution.covered, cov.covered)
+            sensor = FixedSensor(pose, float(len(newly)), 0, 0, newly)
+            solution.fix(sensor)
+            yield solution.progress("fixed", problem.rho, fixed=sensor)
+        late = deadline is not None and time.perf_counter() > deadline
+        if problem.reached(solution.n_covered):
+            solution.stop_reason = f"reached rho = {problem.rho:.0%} of the target" + (
+                " (stopped at the time limit: the plan is the best found by then)" if late else ""
+            )
+        else:
+            solution.stop_reason = (
+                "no plan on the candidate set reaches the goal; the rest of the target "
+                "cannot be seen from the candidates (positions x orientations)"
+            )
+        return solution

@@ -1,0 +1,189 @@
+"""Lower bounds and the lp optimizer: known optima on hand-made cases, bounds never
+above brute force, cover moves that keep the goal."""
+
+import itertools
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import shapely
+from scipy import sparse
+
+from autoscoop_blender.core.model.scene import Area, SceneModel
+from autoscoop_blender.core.model.sensors import PAPER_CAMERA
+from autoscoop_blender.core.optimize.bound import cover_lp, site_cover
+from autoscoop_blender.core.optimize.cover import (
+    Cover,
+    CoverInstance,
+    complete,
+    improve,
+    prune,
+    swap_two_for_one,
+)
+from autoscoop_blender.core.run import Run
+from autoscoop_blender.core.settings import OptimizeSettings
+from tests.core.flat import box_caster, box_mesh
+
+LP = OptimizeSettings(optimizer="lp", rho=0.9)
+
+
+def drain(gen):
+    """Run a generator to its end; its return value."""
+    while True:
+        try:
+            next(gen)
+        except StopIteration as done:
+            return done.value
+
+
+def instance(rows, n_points, goal):
+    """A cover instance from lists of covered points per candidate."""
+    indptr = np.cumsum([0, *map(len, rows)])
+    indices = np.concatenate([np.asarray(r, dtype=np.int64) for r in rows])
+    m = sparse.csr_matrix(
+        (np.ones(len(indices), np.float32), indices, indptr), (len(rows), n_points)
+    )
+    return CoverInstance(m, goal)
+
+
+def brute_force(inst, group=None):
+    """The fewest candidates (or groups of them) covering the goal, by enumeration."""
+    units = range(inst.matrix.shape[0]) if group is None else range(group.max() + 1)
+    for k in range(len(units) + 1):
+        for pick in itertools.combinations(units, k):
+            cols = pick if group is None else np.flatnonzero(np.isin(group, pick))
+            covered = np.zeros(inst.n_points, bool)
+            for c in cols:
+                covered[inst.covers(c)] = True
+            if covered.sum() >= inst.goal:
+                return k
+    return None
+
+
+def random_instance(rng, n_cand=10, n_points=24):
+    rows = [rng.choice(n_points, size=rng.integers(2, 9), replace=False) for _ in range(n_cand)]
+    covered = np.unique(np.concatenate(rows))
+    goal = int(rng.integers(1, len(covered) + 1))
+    return instance(rows, n_points, goal)
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_bounds_never_exceed_the_brute_force_optimum(seed):
+    rng = np.random.default_rng(seed)
+    inst = random_instance(rng)
+    group = rng.integers(0, 4, inst.matrix.shape[0])
+    group[:4] = np.arange(4)  # every site has a candidate
+    best = brute_force(inst)
+    ones = np.ones(inst.matrix.shape[0])
+    lp = drain(cover_lp(inst, ones, group, np.arange(1), integral=False))
+    assert lp.complete and lp.integer_bound() <= best
+    assert lp.value - 1e-5 <= lp.bound <= lp.value  # solved to the end: bound = value
+    # Stopped as soon as the integer bound is final: the same integer bound.
+    early = drain(cover_lp(inst, ones, group, np.arange(1)))
+    assert early.integer_bound() == lp.integer_bound() and early.rounds <= lp.rounds
+    sites = drain(site_cover(inst, group, 4))
+    assert sites.bound == brute_force(inst, group) == len(sites.sites)
+    # A greedy plan, improved, is feasible and no better than the optimum.
+    every = np.arange(inst.matrix.shape[0])
+    cover = improve(complete(Cover(inst), every), every)
+    assert cover.slack >= 0 and len(cover.chosen) >= best
+
+
+def test_an_early_stop_keeps_a_proven_bound():
+    """Stopped before the LP is complete, the bound is still below the optimum."""
+    rng = np.random.default_rng(7)
+    inst = random_instance(rng, n_cand=14, n_points=30)
+    best = brute_force(inst)
+    group = np.arange(inst.matrix.shape[0])
+    lp = drain(cover_lp(inst, np.ones(len(group)), group, np.arange(1), per_round=1, deadline=0.0))
+    assert not lp.complete and lp.rounds == 1
+    assert lp.bound <= lp.integer_bound() <= best
+
+
+def test_cover_moves_keep_the_goal():
+    # Points 0-9. Chosen 0, 1, 2, 4: 0 = {0-4} is redundant (4 covers 0-2, 2 covers
+    # 3-4), and so are 2 and 4 on their own; 1 alone covers 7, 8, 9.
+    rows = [range(0, 5), range(5, 10), range(3, 7), range(0, 10), range(0, 3)]
+    inst = instance(rows, 10, 10)
+    cover = Cover(inst, (0, 1, 2, 4))
+    assert cover.slack == 0 and [cover.exclusive(c) for c in (0, 1, 2, 4)] == [0, 3, 0, 0]
+    prune(cover)  # drops 0 (the first that loses nothing); then each loses points
+    assert sorted(cover.chosen) == [1, 2, 4] and cover.slack == 0
+    # 1 and 2 alone cover 3-9 (7 points): candidate 3 covers them all.
+    assert swap_two_for_one(cover, np.arange(5))
+    assert cover.chosen == [4, 3] and cover.slack == 0
+    prune(cover)
+    assert cover.chosen == [3]
+    # With a goal of 8, without candidate 3: no single candidate covers 8 points, and
+    # 0 + 2 or 1 + 2 cover 7; 0 + 1 or 1 + 4 cover enough.
+    inst8 = instance(rows, 10, 8)
+    cover = improve(complete(Cover(inst8), np.array([0, 1, 2, 4])), np.array([0, 1, 2, 4]))
+    assert cover.slack >= 0 and len(cover.chosen) == 2
+
+
+def _scene(targets, areas, boxes=()):
+    vertices, faces = box_mesh(list(boxes))
+    return SceneModel(
+        vertices=vertices,
+        faces=faces,
+        occluders=tuple(f"Box{k}" for k in range(len(boxes))),
+        targets=tuple(Area(f"Target_{k}", g) for k, g in enumerate(targets)),
+        sensor_areas=tuple(Area(f"SensorArea_{k}", g) for k, g in enumerate(areas)),
+    )
+
+
+def test_three_disjoint_strips_need_three_sensors():
+    """Three 10 x 4 m strips 300 m apart, each with a sensor area beside it: no sensor
+    sees two, one sees a whole strip; so 3 sensors on 3 masts, and the bound is 3."""
+    strips = [shapely.box(300 * k, 0, 300 * k + 10, 4) for k in range(3)]
+    areas = [shapely.box(300 * k, 14, 300 * k + 10, 18) for k in range(3)]
+    settings = replace(LP, rho=1.0, objective="sensors")
+    res = Run(_scene(strips, areas), box_caster(), PAPER_CAMERA, settings).result()
+    m = res.metrics
+    assert m["coverage_fraction"] == 1.0
+    assert m["sensors"] == 3 and m["sensors_lower_bound"] == 3 and m["gap"] == 0.0
+    assert m["masts"] == 3 and m["masts_lower_bound"] == 3
+
+
+def test_two_sensors_on_one_mast_beat_two_masts():
+    """Two targets on opposite sides of a narrow sensor area, each needing its own
+    sensor: with masts dearer than sensors, both sensors share one mast (cost 3 + 2)
+    and the bound proves it: 1 mast, 2 sensors."""
+    north = shapely.box(-6, 12, 6, 20)
+    south = shapely.box(-6, -20, 6, -12)
+    area = shapely.box(-1, -1, 1, 1)
+    res = Run(
+        _scene([north, south], [area]), box_caster(), PAPER_CAMERA, replace(LP, rho=1.0)
+    ).result()
+    m = res.metrics
+    assert m["coverage_fraction"] == 1.0
+    assert (m["sensors"], m["masts"]) == (2, 1)
+    assert m["cost"] == m["objective"] == m["lower_bound"] == 3 * 1 + 1 * 2
+    assert m["gap"] == 0.0
+
+
+def test_a_target_only_one_position_sees():
+    """A long sensor strip behind a 20 m wall with one 1 m gap: only the position at
+    the gap sees the target (boxes: the wall, left and right of the gap)."""
+    target = shapely.box(-5, 10, 5, 16)
+    strip = shapely.box(-60, -5, 60, -3)
+    wall = [((-80.0, -1.0, 0.0), (-0.5, -0.6, 20.0)), ((0.5, -1.0, 0.0), (80.0, -0.6, 20.0))]
+    scene = _scene([target], [strip], wall)
+    settings = replace(LP, rho=0.3, objective="sensors")
+    run = Run(scene, box_caster(wall), PAPER_CAMERA, settings)
+    res = run.result()
+    assert res.metrics["coverage_fraction"] >= 0.3
+    assert all(abs(s.x) <= 1.0 for s in res.sensors)  # at the gap
+    assert res.metrics["sensors"] == res.metrics["sensors_lower_bound"]
+    cands = run.problem.candidates
+    assert set(np.unique(np.abs(cands.positions[cands.position, 0]))) <= {0.0, 1.0}
+
+
+def test_same_settings_same_plan():
+    scene = _scene([shapely.box(0, -7, 60, 7)], [shapely.box(0, 10, 60, 14)])
+    runs = [Run(scene, box_caster(), PAPER_CAMERA, LP).result() for _ in range(2)]
+    assert [(s.x, s.y, s.pitch_deg, s.yaw_deg) for s in runs[0].sensors] == [
+        (s.x, s.y, s.pitch_deg, s.yaw_deg) for s in runs[1].sensors
+    ]
+    m = runs[0].metrics
+    assert m["objective"] >= m["lower_bound"] and 0 <= m["gap"] < 1
