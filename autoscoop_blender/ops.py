@@ -21,7 +21,8 @@ def _fail(op: bpy.types.Operator, error: AutoscoopError) -> set[str]:
 
 
 class AUTOSCOOP_OT_optimize(bpy.types.Operator):
-    """Place sensors until the coverage goal is met (Esc cancels and changes nothing)"""
+    """Place sensors until the coverage goal is met (Esc: the lp optimizer keeps its
+    best plan so far; otherwise, or at a second Esc, cancel and change nothing)"""
 
     bl_idname = names.OP_OPTIMIZE
     bl_label = "Optimize"
@@ -74,6 +75,12 @@ class AUTOSCOOP_OT_optimize(bpy.types.Operator):
         job = self._job
         assert job is not None
         if event.type == "ESC":
+            # The first Esc ends an optimizer that keeps its best plan (lp) early;
+            # otherwise, or at the second Esc, the run is dropped.
+            if not job.stopping and job.run.stop_early():
+                job.stopping = True
+                self.report({"INFO"}, "Stopping: keeping the best plan so far (Esc again cancels)")
+                return {"RUNNING_MODAL"}
             job.cancel()
             self._cleanup(context)
             self.report({"INFO"}, "Optimization cancelled; nothing was changed")
@@ -83,9 +90,13 @@ class AUTOSCOOP_OT_optimize(bpy.types.Operator):
         done = job.step(self._budget_s)
         p = job.progress
         context.window_manager.progress_update(int(1000 * p.fraction))
+        proof = ""
+        if p.bound is not None or p.best is not None:
+            best = "-" if p.best is None else f"{p.best:g}"
+            proof = f", best plan {best}, lower bound {p.bound or 0:.2f}"
         context.workspace.status_text_set(
             f"AutoSCOOP: {p.sensors} sensors, coverage {p.coverage:.1%} of "
-            f"{p.rho:.0%}, epoch {p.epoch} ({p.phase})  -  Esc to cancel"
+            f"{p.rho:.0%}, epoch {p.epoch} ({p.phase}){proof}  -  Esc to cancel"
         )
         if not done:
             return {"RUNNING_MODAL"}

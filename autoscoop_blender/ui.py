@@ -143,6 +143,9 @@ class AUTOSCOOP_PT_results(_Panel, bpy.types.Panel):
             ("Masts", "masts", "{}"),
             ("Cluster ratio", "cluster_ratio", "{:.2f}"),
             ("Overlap factor", "overlap_factor", "{:.2f}"),
+            ("Objective", "objective", "{:g}"),
+            ("Lower bound", "lower_bound", "{:g}"),
+            ("Gap", "gap", "{:.1%}"),
             ("Time", "wall_s", "{:.1f} s"),
         ):
             value = m.get(key)

@@ -96,11 +96,11 @@ def build_parser() -> argparse.ArgumentParser:
         "what",
         nargs="?",
         default="all",
-        choices=("all", "coverage", "optimize", "scaling"),
-        help="all (default): speed/accuracy, optimizer runs, stability, scaling, "
-        "default vs paper -> bench/results.json and charts; scaling: that section only",
+        choices=("all", "coverage", "optimize", "scaling", "bound"),
+        help="all (default): speed/accuracy, optimizer runs, stability, scaling, bounds, "
+        "ES vs paper -> bench/results.json and charts; scaling, bound: that section only",
     )
-    bench.add_argument("--quick", action="store_true", help="all, scaling: a few minutes")
+    bench.add_argument("--quick", action="store_true", help="all, scaling, bound: quicker")
     bench.add_argument("--scene", default=str(SAMPLES / "two_routes.blend"))
     bench.add_argument("--poses", type=int, default=12, help="coverage: poses per method")
     bench.add_argument("--seed", type=int, default=0)

@@ -23,9 +23,13 @@ class ProgressBar:
     def _line(self, p: Progress) -> str:
         filled = int(round(p.fraction * self.width))
         bar = "#" * filled + "-" * (self.width - filled)
+        proof = ""
+        if p.bound is not None or p.best is not None:
+            best = "-" if p.best is None else f"{p.best:g}"
+            proof = f" | best {best} >= bound {p.bound or 0:.2f}"
         return (
             f"[{bar}] coverage {p.coverage:6.2%} of {p.rho:.0%} | sensors {p.sensors:3d} | "
-            f"epoch {p.epoch:3d} | {p.phase:<6} | {time.perf_counter() - self.t0:6.1f} s"
+            f"epoch {p.epoch:3d} | {p.phase:<6}{proof} | {time.perf_counter() - self.t0:6.1f} s"
         )
 
     def update(self, p: Progress) -> None:

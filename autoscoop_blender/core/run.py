@@ -30,7 +30,7 @@ from .model.sensors import SensorModel, SensorPose
 from .optimize.base import FixedSensor, Optimizer, Progress, Solution, newly_covered
 from .optimize.es import EvolutionStrategy
 from .optimize.greedy import Greedy
-from .optimize.lp import LPPlanner
+from .optimize.lp import LPPlanner, bound_only
 from .optimize.parallel import WorkerPool
 from .problem import Problem
 from .result import Provenance, Result, finish_layout
@@ -104,6 +104,8 @@ class Run:
         finally:
             solve.close()
             self.close()
+        if self.settings.bound and self.solution.bound is None:
+            self.solution.bound = yield from bound_only(self.problem, self.solution)
         yield self.solution.progress("masts", rho)
         poses, mast_of = self._masts()
         yield self.solution.progress("report", rho)
@@ -120,6 +122,15 @@ class Run:
     def close(self) -> None:
         """Stop any worker processes (also done when the search ends)."""
         self.optimizer.close()
+
+    def stop_early(self) -> bool:
+        """Ask the optimizer to end its search now and keep the best plan so far;
+        False when it cannot (then only cancelling stops it)."""
+        stop = getattr(self.optimizer, "stop_early", None)
+        if stop is None:
+            return False
+        stop()
+        return True
 
     # --- checkpoints ---------------------------------------------------------------
     def _record(self, sensor: FixedSensor) -> dict[str, Any]:

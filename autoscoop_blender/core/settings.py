@@ -348,7 +348,7 @@ class OptimizeSettings(CoverageSettings):
     """
 
     optimizer: str = knob(
-        "es",
+        "lp",
         "how the sensors are placed",
         choices=OPTIMIZERS,
         flag="--optimizer",

@@ -152,6 +152,7 @@ class OptimizeJob:
         self.steps = self.run.steps()
         self.progress = Progress("search", 0, 0.0, self.settings.rho, 0, 0)
         self.done = False
+        self.stopping = False  # asked to end early with the best plan so far
         self._shown = 0
 
     def step(self, budget_s: float) -> bool:

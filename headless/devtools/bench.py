@@ -25,11 +25,13 @@ from headless.files import json_text, load_scene
 
 
 def main(args: argparse.Namespace) -> int:
-    """``bench [all|coverage|optimize|scaling]``."""
+    """``bench [all|coverage|optimize|scaling|bound]``."""
     if args.what == "coverage":
         return coverage(args)
     if args.what == "optimize":
         return optimize(args)
+    if args.what == "bound":
+        return suite.run_bound(args)
     return suite.run(args) if args.what == "all" else suite.run_scaling(args)
 
 

@@ -78,7 +78,7 @@ PLATFORMS: dict[str, str] = {
 }
 """Blender platform -> the pip ``--platform`` tag that finds every bundled wheel."""
 
-BUNDLED: tuple[str, ...] = ("scipy", "shapely")
+BUNDLED: tuple[str, ...] = ("scipy", "shapely", "highspy")
 """Packages shipped as wheels inside the zips (versions from ``requirements.txt``)."""
 
 NOT_BUNDLED: tuple[str, ...] = ("numpy",)

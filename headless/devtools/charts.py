@@ -109,3 +109,34 @@ def optimize_chart(results: dict[str, Any], path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def bound_chart(results: dict[str, Any], path: Path) -> None:
+    """Objective against wall seconds per optimizer, one panel per scene, with the lp
+    optimizer's proven lower bound on the cost as a line."""
+    scenes = results.get("bound", {}).get("scenes", {})
+    if not scenes:
+        return
+    fig, axes = plt.subplots(1, len(scenes), figsize=(6 * len(scenes), 4.8), squeeze=False)
+    for ax, (scene, rows) in zip(axes[0], scenes.items()):
+        cost_rows = [r for r in rows if r["objective_kind"] == "cost"]
+        for i, r in enumerate(cost_rows):
+            ax.scatter([r["wall_s"]], [r["cost"]], color=f"C{i}", s=40, zorder=3,
+                       label=f"{r['config']}: {r['sensors']} sensors, {r['masts']} masts")  # fmt: skip
+            ax.annotate(f"{r['cost']:g}", (r["wall_s"], r["cost"]), textcoords="offset points",
+                        xytext=(5, 3), fontsize=8)  # fmt: skip
+        bounds = [r["lower_bound"] for r in cost_rows if r["lower_bound"] is not None]
+        if bounds:
+            best = max(bounds)
+            ax.axhline(best, color="k", ls="--", lw=1, label=f"proven lower bound {best:g}")
+        ax.set_xscale("log")
+        ax.set_xlabel("wall seconds (log)")
+        ax.set_ylabel("cost = 3 x masts + sensors")
+        ax.set_title(scene, fontsize=10)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle(f"Objective against time, with the bound ({results.get('date')}, "
+                 f"{results.get('machine')})", fontsize=9)  # fmt: skip
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -130,7 +130,7 @@ def test_same_poses_as_headless(tmp_path):
 
 
 def test_modal_path_progresses_and_cancel_leaves_the_scene_as_it_was():
-    props = _flat_wall(rho=0.9)
+    props = _flat_wall(rho=0.9, optimizer="es")
     before = _snapshot()
     job = pipeline.OptimizeJob(bpy.context)
     seen = []

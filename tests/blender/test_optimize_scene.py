@@ -11,7 +11,7 @@ from autoscoop_blender.scene.extract import extract_scene
 from autoscoop_blender.scene.factory import BVHFactory
 from tests.blender import builders as b
 
-FAST = OptimizeSettings(rho=0.9, es=ESParams(mu=12, lam=6, max_epochs=8))
+FAST = OptimizeSettings(optimizer="es", rho=0.9, es=ESParams(mu=12, lam=6, max_epochs=8))
 
 
 def walled_scene():

@@ -17,6 +17,7 @@ from tests.cli.conftest import SAMPLES, run_headless
 
 FLAT = SAMPLES / "flat_wall.blend"
 SMALL = """
+optimizer = "es"
 rho = 0.6
 [es]
 mu = 8
@@ -38,7 +39,7 @@ def test_default_run_reaches_the_goal(default_run):
     res = json.loads((out / "result.json").read_text())
     m = res["metrics"]
     assert m["coverage_fraction"] >= 0.97
-    assert res["scene"] == "two_routes.blend" and res["optimizer"] == "es"
+    assert res["scene"] == "two_routes.blend" and res["optimizer"] == "lp"
     assert res["method"] == "targeted" and res["seed"] == 0
     for key in (
         "sensors", "masts", "cluster_ratio", "relative_sensor_coverage", "overlap_factor",
@@ -94,7 +95,7 @@ def test_output_files(default_run):
 
 def test_pointcloud_pipeline_end_to_end(tmp_path):
     cfg = tmp_path / "tiny.toml"
-    cfg.write_text("rho = 0.3\n[es]\nmu = 4\nlam = 2\nmax_epochs = 2\n")
+    cfg.write_text('optimizer = "es"\nrho = 0.3\n[es]\nmu = 4\nlam = 2\nmax_epochs = 2\n')
     out = tmp_path / "pc"
     code, _, stderr = run_headless(
         "optimize", FLAT, "--method", "pointcloud", "--config", cfg, "--out-dir", out

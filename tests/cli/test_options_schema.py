@@ -34,6 +34,8 @@ def test_every_flagged_knob_is_an_option(command, cls, overrides):
         assert action.default == (None if overrides else s.default)
         if s.knob.choices:
             assert action.choices == [c[0] for c in s.knob.choices]
+        elif s.kind is bool:  # a switch that turns the knob on
+            assert action.const is True and action.nargs == 0
         else:
             assert action.type is s.kind
         assert action.help.startswith(s.knob.help)
@@ -48,6 +50,8 @@ def test_parsed_options_become_settings():
     args = build_parser().parse_args(["coverage", "--sensors", "s", "--out", "o", "--grid", "-1"])
     with pytest.raises(InputError, match=r"grid_m \(--grid\) = -1.0 is out of range"):
         CoverageSettings(**flag_values(CoverageSettings, vars(args))).validated()
-    args = build_parser().parse_args(["optimize", "--seed", "4", "--optimizer", "greedy"])
+    args = build_parser().parse_args(
+        ["optimize", "--seed", "4", "--optimizer", "greedy", "--bound"]
+    )
     given = {k: v for k, v in flag_values(OptimizeSettings, vars(args)).items() if v is not None}
-    assert given == {"seed": 4, "optimizer": "greedy"}
+    assert given == {"seed": 4, "optimizer": "greedy", "bound": True}

@@ -162,7 +162,7 @@ def test_auto_oversample_follows_spacing_range_and_grid():
 
 # --- optimizer ----------------------------------------------------------------------
 
-FAST = OptimizeSettings(rho=0.9, es=ESParams(mu=6, lam=3, max_epochs=3))
+FAST = OptimizeSettings(optimizer="es", rho=0.9, es=ESParams(mu=6, lam=3, max_epochs=3))
 
 
 def _scene(target, sensors):

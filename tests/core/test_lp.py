@@ -187,3 +187,34 @@ def test_same_settings_same_plan():
     ]
     m = runs[0].metrics
     assert m["objective"] >= m["lower_bound"] and 0 <= m["gap"] < 1
+
+
+def test_other_optimizers_get_the_bound_when_asked():
+    scene = _scene([shapely.box(0, -7, 60, 7)], [shapely.box(0, 10, 60, 14)])
+    fast_es = replace(LP, optimizer="es", es=replace(LP.es, mu=8, lam=4, max_epochs=4))
+    for settings in (replace(LP, optimizer="greedy"), fast_es):
+        plain = Run(scene, box_caster(), PAPER_CAMERA, settings).result().metrics
+        assert plain["lower_bound"] is None and plain["objective"] == plain["cost"]
+        m = Run(scene, box_caster(), PAPER_CAMERA, replace(settings, bound=True)).result().metrics
+        assert m["sensors"] == plain["sensors"]  # the bound does not change the plan
+        assert 0 < m["lower_bound"] <= m["objective"] and m["gap"] >= 0
+        assert m["sensors_lower_bound"] >= 1 and m["masts_lower_bound"] >= 1
+
+
+def test_stopping_early_keeps_the_best_plan_and_a_proven_bound():
+    """Asked to stop at its first report (the Blender operator's Esc), the lp optimizer
+    ends its search at once and still places a plan that reaches the goal, with the
+    bound proven so far (0 if none yet) below it."""
+    scene = _scene([shapely.box(0, -7, 100, 7)], [shapely.box(0, 10, 100, 14)])
+    run = Run(scene, box_caster(), PAPER_CAMERA, LP)
+    for progress in run.steps():
+        if progress.phase == "search":
+            assert run.stop_early()
+    res = run.result()
+    m = res.metrics
+    assert "stopped early" in res.stop_reason and m["coverage_fraction"] >= 0.9
+    assert 0 <= m["lower_bound"] <= m["objective"]
+    full = Run(scene, box_caster(), PAPER_CAMERA, LP).result().metrics
+    assert m["lower_bound"] <= full["lower_bound"] and full["objective"] <= m["objective"]
+    # The ES has no early stop: Esc cancels it.
+    assert not Run(scene, box_caster(), PAPER_CAMERA, replace(LP, optimizer="es")).stop_early()

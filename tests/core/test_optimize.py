@@ -24,7 +24,7 @@ from autoscoop_blender.core.run import Run
 from autoscoop_blender.core.settings import ESParams, OptimizeSettings
 from tests.core.flat import box_caster, box_mesh
 
-FAST = OptimizeSettings(rho=0.9, es=ESParams(mu=12, lam=6, max_epochs=10))
+FAST = OptimizeSettings(optimizer="es", rho=0.9, es=ESParams(mu=12, lam=6, max_epochs=10))
 BOX = ((30.0, 8.0, 0.0), (34.0, 12.0, 4.0))
 
 

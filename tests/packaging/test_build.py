@@ -1,7 +1,7 @@
 """The built linux-x64 zip is a valid extension that installs into the pip ``bpy`` module
 and runs its own code with its own bundled wheels, with no Blender binary.
 
-Needs PyPI the first time (scipy and shapely wheels, about 38 MB); they are cached in
+Needs PyPI the first time (scipy, shapely and highspy wheels, about 43 MB); they are cached in
 the repository's git-ignored ``build/wheels/``, after which the module takes seconds.
 
 Install and use run in two fresh processes with ``BLENDER_USER_RESOURCES`` pointing at
@@ -14,8 +14,8 @@ a temporary folder, so the developer's own Blender settings are never touched:
    ``{'FINISHED'}``. ``enable_on_install=True`` makes it unpack the wheels into
    ``extensions/.local/lib/python3.11/site-packages``; preferences are not saved, so
 2. the second process enables the add-on itself. There the extensions' ``.local``
-   site-packages comes before the venv's on ``sys.path``, so the bundled scipy and
-   shapely are the ones imported, which the tests check.
+   site-packages comes before the venv's on ``sys.path``, so the bundled scipy,
+   shapely and highspy are the ones imported, which the tests check.
 
 ``run_in_installed`` is the hook for further tests of the installed copy.
 """
@@ -120,10 +120,10 @@ def test_zip_validates(linux_zip: Path) -> None:
     assert linux_zip.name == "autoscoop-0.1.0-linux_x64.zip"
 
 
-def test_zip_bundles_pinned_scipy_and_shapely_only(linux_zip: Path) -> None:
+def test_zip_bundles_pinned_scipy_shapely_and_highspy_only(linux_zip: Path) -> None:
     wheels = bx.zip_wheels(linux_zip)
     fields = [bx.wheel_fields(w) for w in wheels]
-    assert sorted(f[0] for f in fields) == ["scipy", "shapely"], wheels
+    assert sorted(f[0] for f in fields) == ["highspy", "scipy", "shapely"], wheels
     assert {f[0]: f[1] for f in fields} == bx.pinned_versions()
     for w, (_, _, python_tag, platform_tags) in zip(wheels, fields):
         assert python_tag == "cp311", w
@@ -158,14 +158,14 @@ def test_install_reports_success(installed: Installed) -> None:
 def test_installed_copy_imports_bundled_wheels(installed: Installed) -> None:
     paths = run_in_installed(
         """
-        import numpy, scipy, shapely
-        result = {m.__name__: m.__file__ for m in (ext, numpy, scipy, shapely)}
+        import highspy, numpy, scipy, shapely
+        result = {m.__name__: m.__file__ for m in (ext, numpy, scipy, shapely, highspy)}
         """,
         installed.env,
     )
     user = installed.env["BLENDER_USER_RESOURCES"]
     assert paths["bl_ext.user_default.autoscoop"].startswith(user)
-    for name in ("scipy", "shapely"):
+    for name in ("scipy", "shapely", "highspy"):
         assert paths[name].startswith(user) and "/extensions/.local/" in paths[name], paths
     assert "/extensions/.local/" not in paths["numpy"], paths
 

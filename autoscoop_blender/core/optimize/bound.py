@@ -54,8 +54,9 @@ POLL_S = 0.05
 SAFETY = 1e-6
 
 
-def _run(h: highspy.Highs) -> Generator[None, None, None]:
-    """Run ``h`` in a thread, yielding while it works; cancel it if closed early."""
+def _run(h: highspy.Highs, stop: threading.Event | None = None) -> Generator[None, None, bool]:
+    """Run ``h`` in a thread, yielding while it works; cancel it if closed early or
+    when ``stop`` is set. Returns whether the solve ran to its end."""
     done = threading.Event()
 
     def work() -> None:
@@ -64,13 +65,18 @@ def _run(h: highspy.Highs) -> Generator[None, None, None]:
 
     thread = threading.Thread(target=work, daemon=True)
     thread.start()
+    stopped = False
     try:
         while not done.wait(POLL_S):
+            if stop is not None and stop.is_set() and not stopped:
+                h.cancelSolve()
+                stopped = True
             yield
     finally:
         if not done.is_set():
             h.cancelSolve()
         thread.join()
+    return not stopped
 
 
 def _empty_rows(h: highspy.Highs, lower: F64, upper: F64) -> None:
@@ -167,14 +173,16 @@ def cover_lp(
     per_round: int = 50,
     integral: bool = True,
     deadline: float | None = None,
+    stop: threading.Event | None = None,
 ) -> Generator[LPProgress | None, None, LPSolution]:
     """The LP relaxation by column generation (see the module docstring).
 
     cost: (C,) > 0 per candidate; group: (C,) its position (one new column per group
     and round); initial: candidates to start from (e.g. a greedy plan); integral: stop
-    once the integer bound is final; deadline: ``time.perf_counter()`` to stop at (the
-    bound then holds, the LP is not complete). Yields None while HiGHS works and an
-    ``LPProgress`` after each round.
+    once the integer bound is final; deadline: ``time.perf_counter()`` to stop at, and
+    stop: an event to stop at once (the bound then holds, the LP is not complete; a
+    round cut short is dropped). Yields None while HiGHS works and an ``LPProgress``
+    after each round.
     """
     matrix, n = inst.matrix, inst.n_points
     h = _new_highs(None)
@@ -204,9 +212,15 @@ def cover_lp(
     add(np.unique(np.asarray(initial, dtype=np.int64)))
     best = 0.0
     rounds = 0
+    # Before any round: the initial columns as the plan, no bound, nothing priced.
+    last = LPSolution(
+        np.inf, 0.0, np.array(order, dtype=np.int64), np.ones(len(order)),
+        np.full(matrix.shape[0], np.inf), 0, False,
+    )  # fmt: skip
     while True:
         rounds += 1
-        yield from _run(h)
+        if not (yield from _run(h, stop)):
+            return last  # stopped in the middle of a solve: its values are not optimal
         sol = h.getSolution()
         value = float(h.getInfo().objective_function_value)
         duals = np.asarray(sol.row_dual)[:n]
@@ -220,13 +234,15 @@ def cover_lp(
         complete = len(negative) == 0
         done_int = integral and math.ceil(best - 1e-6) >= math.ceil(value - 1e-6)
         late = deadline is not None and time.perf_counter() > deadline
+        late = late or (stop is not None and stop.is_set())
+        if complete:
+            best = max(best, value * (1 - SAFETY) - SAFETY)
+        x = np.asarray(sol.col_value)[first:]
+        last = LPSolution(
+            value, best, np.array(order, dtype=np.int64), x, reduced, rounds, complete
+        )
         if complete or done_int or late:
-            if complete:
-                best = max(best, value * (1 - SAFETY) - SAFETY)
-            x = np.asarray(sol.col_value)[first:]
-            return LPSolution(
-                value, best, np.array(order, dtype=np.int64), x, reduced, rounds, complete
-            )
+            return last
         # The best candidate of each group, the most negative groups first.
         by_group = negative[np.lexsort((reduced[negative], group[negative]))]
         firsts = by_group[np.r_[True, group[by_group][1:] != group[by_group][:-1]]]
@@ -243,10 +259,15 @@ class SiteSolution:
 
 
 def site_cover(
-    inst: CoverInstance, site_of: I64, n_sites: int, deadline: float | None = None
+    inst: CoverInstance,
+    site_of: I64,
+    n_sites: int,
+    deadline: float | None = None,
+    stop: threading.Event | None = None,
 ) -> Generator[None, None, SiteSolution]:
     """The fewest sites (mast positions) whose candidates cover the goal: a MILP over
-    sites (see the module docstring); stops at ``deadline`` with the bound proven so far.
+    sites (see the module docstring); stops at ``deadline``, or when ``stop`` is set,
+    with the bound proven so far and the best set found.
     """
     m = inst.matrix
     # Site s covers point n when any candidate at s does.
@@ -264,12 +285,13 @@ def site_cover(
         np.arange(n, n + n_sites, dtype=np.int32),
         np.array([highspy.HighsVarType.kInteger] * n_sites),
     )
-    yield from _run(h)
+    yield from _run(h, stop)
     info = h.getInfo()
     if h.getModelStatus() == highspy.HighsModelStatus.kOptimal:
         bound = round(float(info.objective_function_value))
-    else:
-        bound = max(0, math.ceil(float(info.mip_dual_bound) - 1e-6))
+    else:  # stopped early: the dual bound so far (none yet: 0)
+        dual = float(info.mip_dual_bound)
+        bound = max(0, math.ceil(dual - 1e-6)) if math.isfinite(dual) else 0
     values = np.asarray(h.getSolution().col_value)
     chosen = np.zeros(0, dtype=np.int64)
     if len(values) == n + n_sites and info.primal_solution_status == 2:  # feasible

@@ -20,6 +20,7 @@ bounds where they are (still proven) and plans from what the LP has so far.
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Generator, Iterator
 from typing import Any
@@ -43,11 +44,14 @@ THRESHOLDS = (0.9, 0.7, 0.5, 0.3, 0.2)
 
 def instance(cands: CandidateSet, problem: Problem, covered: NDArray[np.bool_]) -> CoverInstance:
     """The cover instance of what is left: the points not ``covered`` yet (columns of
-    the candidate matrix dropped) and the goal less what is covered."""
-    goal = problem.goal - int(np.count_nonzero(covered))
+    the candidate matrix dropped) and the goal less what is covered. When no plan can
+    reach the goal (parts of the target no candidate sees), the goal is what all
+    candidates together cover: the most any plan can."""
     matrix = cands.matrix
     if covered.any():
         matrix = matrix[:, np.flatnonzero(~covered)].tocsr()
+    coverable = int(np.count_nonzero(np.bincount(matrix.indices, minlength=matrix.shape[1])))
+    goal = min(problem.goal - int(np.count_nonzero(covered)), coverable)
     return CoverInstance(matrix, goal)
 
 
@@ -98,23 +102,29 @@ def _both(
     return values[0], values[1]
 
 
-def prove_and_plan(
+def prove_bound(
     problem: Problem,
     cands: CandidateSet,
     inst: CoverInstance,
     solution: Solution,
     deadline: float | None,
-) -> Generator[Progress, None, tuple[list[int], PlanBound]]:
-    """The bounds and the best plan of candidates (see the module docstring)."""
-    s = problem.settings
-    every = np.arange(len(cands), dtype=np.int64)
-    greedy = complete(Cover(inst), every)
-    best_value = plan_cost(cands, greedy.chosen, s.objective, s.mast_cost, s.sensor_cost)[0]
+    best_value: float | None = None,
+    stop: threading.Event | None = None,
+) -> Generator[Progress, None, tuple[PlanBound, LPSolution, SiteSolution, Cover]]:
+    """The lower bounds: the LP by column generation from a greedy plan's columns and,
+    beside it, the fewest masts. Returns the bound, the LP, the sites and the greedy
+    plan. Progress reports the LP's bound on the sensors as it rises."""
+    greedy = complete(Cover(inst), np.arange(len(cands), dtype=np.int64))
     lp_gen = cover_lp(
-        inst, np.ones(len(cands)), cands.position, np.array(greedy.chosen), deadline=deadline
+        inst,
+        np.ones(len(cands)),
+        cands.position,
+        np.array(greedy.chosen),
+        deadline=deadline,
+        stop=stop,
     )
-    site_gen = site_cover(inst, cands.position, len(cands.positions), deadline)
-    bound_so_far = 0.0
+    site_gen = site_cover(inst, cands.position, len(cands.positions), deadline, stop)
+    so_far = 0.0
     both = _both(lp_gen, site_gen)
     while True:
         try:
@@ -123,19 +133,47 @@ def prove_and_plan(
             lp, sites = done.value
             break
         if isinstance(step, LPProgress):
-            bound_so_far = step.bound
-        yield solution.progress("search", problem.rho, bound=bound_so_far, best=best_value)
-    bound = _plan_bound(lp, sites, cands, problem)
+            so_far = step.bound
+        yield solution.progress("search", problem.rho, bound=so_far, best=best_value)
+    return _plan_bound(lp, sites, cands, problem), lp, sites, greedy
+
+
+def prove_and_plan(
+    problem: Problem,
+    cands: CandidateSet,
+    inst: CoverInstance,
+    solution: Solution,
+    deadline: float | None,
+    stop: threading.Event | None = None,
+) -> Generator[Progress, None, tuple[list[int], PlanBound]]:
+    """The bounds and the best plan of candidates (see the module docstring); ``stop``
+    ends the search early (the bounds so far, plans from the LP so far)."""
+    s = problem.settings
+
+    def value(plan: list[int]) -> float:
+        return plan_cost(cands, plan, s.objective, s.mast_cost, s.sensor_cost)[0]
+
+    bound, lp, sites, greedy = yield from prove_bound(
+        problem, cands, inst, solution, deadline, stop=stop
+    )
     lower = bound.objective(s.objective, s.mast_cost, s.sensor_cost)
     plans = [greedy.chosen]
     for plan in (*_lp_plans(inst, lp), *_site_plans(inst, cands, sites)):
         plans.append(plan)
-        best_value = min(
-            best_value, plan_cost(cands, plan, s.objective, s.mast_cost, s.sensor_cost)[0]
-        )
-        yield solution.progress("search", problem.rho, bound=lower, best=best_value)
-    best = min(plans, key=lambda p: plan_cost(cands, p, s.objective, s.mast_cost, s.sensor_cost))
-    return best, bound
+        best = min(value(p) for p in plans)
+        yield solution.progress("search", problem.rho, bound=lower, best=best)
+    return min(plans, key=value), bound
+
+
+def bound_only(problem: Problem, solution: Solution) -> Generator[Progress, None, PlanBound]:
+    """The lower bound of the whole problem, for a plan another optimizer made (the
+    ES's or greedy's, asked with ``bound = true``)."""
+    cands = yield from candidates_of(problem, solution)
+    inst = instance(cands, problem, np.zeros(problem.n_targets, dtype=bool))
+    s = problem.settings
+    deadline = None if s.time_limit_s is None else time.perf_counter() + s.time_limit_s
+    bound, *_ = yield from prove_bound(problem, cands, inst, solution, deadline)
+    return bound
 
 
 def _plan_bound(
@@ -194,8 +232,15 @@ class LPPlanner:
 
     name = "lp"
 
+    def __init__(self) -> None:
+        self.stop = threading.Event()
+
     def close(self) -> None:
         pass
+
+    def stop_early(self) -> None:
+        """End the search now: the bounds proven so far, the best plan from them."""
+        self.stop.set()
 
     def solve(self, problem: Problem, solution: Solution) -> Generator[Progress, None, Solution]:
         s = problem.settings
@@ -203,14 +248,23 @@ class LPPlanner:
         deadline = None if s.time_limit_s is None else t0 + s.time_limit_s
         cands = yield from candidates_of(problem, solution)
         inst = instance(cands, problem, solution.covered)
-        if inst.goal <= 0:
-            solution.stop_reason = f"reached rho = {problem.rho:.0%} of the target"
+        if problem.reached(solution.n_covered) or inst.goal <= 0:
+            solution.stop_reason = (
+                f"reached rho = {problem.rho:.0%} of the target"
+                if problem.reached(solution.n_covered)
+                else "no candidate sees any target point left"
+            )
             return solution
-        chosen, bound = yield from prove_and_plan(problem, cands, inst, solution, deadline)
+        chosen, bound = yield from prove_and_plan(
+            problem, cands, inst, solution, deadline, self.stop
+        )
         solution.bound = bound
         for c in in_gain_order(inst, chosen):
             if problem.reached(solution.n_covered):
                 break
+            if len(solution.sensors) >= problem.max_sensors:
+                solution.stop_reason = f"stopped at max_sensors = {problem.max_sensors}"
+                return solution
             pose = cands.pose(problem, c)
             cov = problem.evaluate(pose)
             solution.sight_rays += cov.rays
@@ -219,14 +273,15 @@ class LPPlanner:
             sensor = FixedSensor(pose, float(len(newly)), 0, 0, newly)
             solution.fix(sensor)
             yield solution.progress("fixed", problem.rho, fixed=sensor)
-        late = deadline is not None and time.perf_counter() > deadline
+        late = self.stop.is_set() or (deadline is not None and time.perf_counter() > deadline)
         if problem.reached(solution.n_covered):
             solution.stop_reason = f"reached rho = {problem.rho:.0%} of the target" + (
-                " (stopped at the time limit: the plan is the best found by then)" if late else ""
+                " (stopped early: the plan is the best found by then)" if late else ""
             )
         else:
             solution.stop_reason = (
-                "no plan on the candidate set reaches the goal; the rest of the target "
-                "cannot be seen from the candidates (positions x orientations)"
+                "no plan on the candidate set reaches the goal: the rest of the target "
+                "cannot be seen from the candidates (positions x orientations); the plan "
+                "covers all that can be"
             )
         return solution
