@@ -308,6 +308,7 @@ def objective_metrics(
         "sensors_lower_bound": None,
         "masts_lower_bound": None,
         "lp_bound": None,
+        "lp_rounds": None,
         "bound_scope": None,
     }
     if bound is not None:
@@ -318,6 +319,7 @@ def objective_metrics(
             sensors_lower_bound=bound.sensors,
             masts_lower_bound=bound.masts,
             lp_bound=round(bound.lp, 4),
+            lp_rounds=bound.rounds,
             bound_scope=bound.scope,
         )
     return out

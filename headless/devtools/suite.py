@@ -617,6 +617,7 @@ def _bound_point(scene_name: str, tiles: tuple[int, ...], name: str) -> dict[str
         "sensors_lower_bound": m["sensors_lower_bound"],
         "masts_lower_bound": m["masts_lower_bound"],
         "lp_bound": m["lp_bound"],
+        "lp_rounds": m["lp_rounds"],
         "coverage_fraction": m["coverage_fraction"],
         "wall_s": m["wall_s"],
         "target_m2": m["target_area_m2"],

@@ -71,7 +71,7 @@ class PlanBound:
 
     sensors: the fewest sensors any plan needs; masts: the fewest masts (None: not
     proven); lp: the proven lower bound on the LP relaxation's value (sensors; equal
-    to it when the LP was solved to the end);
+    to it when the LP was solved to the end); rounds: of column generation;
     scope: over which plans the bound holds, in words.
     """
 
@@ -79,6 +79,7 @@ class PlanBound:
     masts: int | None
     lp: float
     scope: str
+    rounds: int = 0
 
     def objective(self, objective: str, mast_cost: float, sensor_cost: float) -> float:
         """The bound on ``objective``: sensors, masts, or cost = mast_cost x masts +

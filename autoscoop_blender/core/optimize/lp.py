@@ -184,6 +184,7 @@ def _plan_bound(
         masts=sites.bound,
         lp=lp.bound,
         scope=bound_scope(cands, problem),
+        rounds=lp.rounds,
     )
 
 
