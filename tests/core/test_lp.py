@@ -11,7 +11,12 @@ from scipy import sparse
 
 from autoscoop_blender.core.model.scene import Area, SceneModel
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA
-from autoscoop_blender.core.optimize.bound import cover_lp, site_cover
+from autoscoop_blender.core.optimize.bound import (
+    cover_lp,
+    mast_aware_bound,
+    sensors_on_sites,
+    site_cover,
+)
 from autoscoop_blender.core.optimize.cover import (
     Cover,
     CoverInstance,
@@ -87,6 +92,69 @@ def test_bounds_never_exceed_the_brute_force_optimum(seed):
     every = np.arange(inst.matrix.shape[0])
     cover = improve(complete(Cover(inst), every), every)
     assert cover.slack >= 0 and len(cover.chosen) >= best
+
+
+def cheapest(inst, group, mast_cost, sensor_cost, sites=None):
+    """The least mast_cost x masts + sensor_cost x sensors of any plan (on ``sites``
+    only, if given), by enumeration of all candidate subsets."""
+    allowed = np.arange(inst.matrix.shape[0])
+    if sites is not None:
+        allowed = allowed[np.isin(group[allowed], sites)]
+    best = np.inf
+    for k in range(len(allowed) + 1):
+        for pick in itertools.combinations(allowed, k):
+            covered = np.zeros(inst.n_points, bool)
+            for c in pick:
+                covered[inst.covers(c)] = True
+            if covered.sum() >= inst.goal:
+                cost = mast_cost * len(set(group[list(pick)])) + sensor_cost * k
+                best = min(best, cost)
+    return best
+
+
+@pytest.mark.parametrize("seed", range(8))
+@pytest.mark.parametrize("mast_cost", [0.5, 3.0])
+def test_mast_aware_bound_and_milp_against_brute_force(seed, mast_cost):
+    """The mast-aware bound never exceeds the cheapest plan; the mast-aware MILP on a
+    set of sites finds the cheapest plan on them, from a worse start."""
+    rng = np.random.default_rng(100 + seed)
+    inst = random_instance(rng, n_cand=12, n_points=20)
+    group = rng.integers(0, 4, inst.matrix.shape[0])
+    group[:4] = np.arange(4)
+    ones = np.ones(inst.matrix.shape[0])
+    lp = drain(cover_lp(inst, ones, group, np.arange(1), integral=False))
+    best = cheapest(inst, group, mast_cost, 1.0)
+    # Scaled from the sensors LP's duals: at least the LP (mast cost > 0), never
+    # above the optimum.
+    cost_lp = mast_aware_bound(lp, group, mast_cost, 1.0)
+    assert lp.value - 1e-4 <= cost_lp <= best + 1e-9
+    sites = np.array([0, 1, 2, 3])
+    start = list(range(inst.matrix.shape[0]))  # every candidate: feasible, expensive
+    plan = drain(sensors_on_sites(inst, group, sites, start, mast_cost, 1.0))
+    covered = np.zeros(inst.n_points, bool)
+    for c in plan:
+        covered[inst.covers(c)] = True
+    assert covered.sum() >= inst.goal
+    cost = mast_cost * len(set(group[plan])) + len(plan)
+    assert cost == pytest.approx(best)
+    # Restricted to two sites: the cheapest plan on them (or the start, if none).
+    two = np.array([0, 1])
+    on_two = cheapest(inst, group, mast_cost, 1.0, two)
+    if np.isfinite(on_two):
+        start2 = list(np.flatnonzero(np.isin(group, two)))
+        plan2 = drain(sensors_on_sites(inst, group, two, start2, mast_cost, 1.0))
+        assert set(group[plan2]) <= {0, 1}
+        assert mast_cost * len(set(group[plan2])) + len(plan2) == pytest.approx(on_two)
+
+
+def test_mast_aware_bound_beats_the_sensors_lp_when_masts_are_dear():
+    """Two points, each seen by one candidate at its own site: any plan pays two masts
+    and two sensors. The sensors LP is 2; scaled with mast cost 3 the bound is 8."""
+    inst = instance([[0], [1]], 2, 2)
+    group = np.array([0, 1])
+    lp = drain(cover_lp(inst, np.ones(2), group, np.arange(1), integral=False))
+    assert lp.value == pytest.approx(2.0)
+    assert mast_aware_bound(lp, group, 3.0, 1.0) == pytest.approx(8.0, rel=1e-5)
 
 
 def test_an_early_stop_keeps_a_proven_bound():

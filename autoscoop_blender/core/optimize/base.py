@@ -72,7 +72,8 @@ class PlanBound:
     sensors: the fewest sensors any plan needs; masts: the fewest masts (None: not
     proven); lp: the proven lower bound on the LP relaxation's value (sensors; equal
     to it when the LP was solved to the end); rounds: of column generation;
-    scope: over which plans the bound holds, in words.
+    scope: over which plans the bound holds, in words; cost_lp: a proven lower bound
+    on the cost from the mast-aware LP (``bound.mast_aware_bound``), 0 if not known.
     """
 
     sensors: int
@@ -80,16 +81,18 @@ class PlanBound:
     lp: float
     scope: str
     rounds: int = 0
+    cost_lp: float = 0.0
 
     def objective(self, objective: str, mast_cost: float, sensor_cost: float) -> float:
         """The bound on ``objective``: sensors, masts, or cost = mast_cost x masts +
-        sensor_cost x sensors (each part at its own bound)."""
+        sensor_cost x sensors: the larger of each part at its own bound and the
+        mast-aware LP's bound."""
         masts = self.masts or 0
         if objective == "sensors":
             return float(self.sensors)
         if objective == "masts":
             return float(masts)
-        return mast_cost * masts + sensor_cost * self.sensors
+        return max(self.cost_lp, mast_cost * masts + sensor_cost * self.sensors)
 
 
 @dataclass

@@ -26,6 +26,15 @@ a small MILP over positions (each covers the union of its candidates' points),
 solved by HiGHS; its proven dual bound is the masts bound, and its solution a set of
 sites a plan may use.
 
+**Masts and sensors together.** The mast-aware model links each candidate to its
+mast's site, ``x_c <= y_s``, and costs ``mast_cost`` per open site plus
+``sensor_cost`` per candidate. Its LP relaxation is weak (a fractional plan opens
+sites as fractionally as it picks candidates: on ``two_routes`` its value falls below
+50, far under the 70 of the masts and sensors bounds added), so its bound is taken
+cheaply from the sensors LP's duals (``mast_aware_bound``). As a MILP over the sites
+of the fewest masts (``sensors_on_sites``) it is exact and small: the fewest sensors
+(and cost) on those sites, started from a greedy plan on them.
+
 Solves run in a thread and the generators yield while they wait, so a caller (the
 Blender operator) stays responsive; closing the generator cancels the solve.
 """
@@ -52,6 +61,9 @@ I64 = NDArray[np.int64]
 POLL_S = 0.05
 # A bound is lowered by this much (relative) against the solver's tolerances.
 SAFETY = 1e-6
+# Branch-and-bound nodes of the mast-aware MILP: a limit in work, not seconds, so the
+# plan is the same on a fast and a slow machine.
+MAX_NODES = 2000
 
 
 def _run(h: highspy.Highs, stop: threading.Event | None = None) -> Generator[None, None, bool]:
@@ -148,14 +160,16 @@ class LPSolution:
 
     value: the restricted LP's optimum (the full LP's value when ``complete``); bound:
     a proven lower bound on the full LP's value; columns, x: the candidates in the
-    restricted LP and their values; reduced: (C,) every candidate's reduced cost under
-    the last duals; complete: no candidate could improve the LP any more.
+    restricted LP and their values; priced, reduced: (C,) every candidate's dual
+    weight (the last point duals summed over its points) and its reduced cost, cost
+    less that; complete: no candidate could improve the LP any more.
     """
 
     value: float
     bound: float
     columns: I64
     x: F64
+    priced: F64
     reduced: F64
     rounds: int
     complete: bool
@@ -215,7 +229,7 @@ def cover_lp(
     # Before any round: the initial columns as the plan, no bound, nothing priced.
     last = LPSolution(
         np.inf, 0.0, np.array(order, dtype=np.int64), np.ones(len(order)),
-        np.full(matrix.shape[0], np.inf), 0, False,
+        np.zeros(0), np.full(matrix.shape[0], np.inf), 0, False,
     )  # fmt: skip
     while True:
         rounds += 1
@@ -239,7 +253,7 @@ def cover_lp(
             best = max(best, value * (1 - SAFETY) - SAFETY)
         x = np.asarray(sol.col_value)[first:]
         last = LPSolution(
-            value, best, np.array(order, dtype=np.int64), x, reduced, rounds, complete
+            value, best, np.array(order, dtype=np.int64), x, priced, reduced, rounds, complete
         )
         if complete or done_int or late:
             return last
@@ -247,6 +261,31 @@ def cover_lp(
         by_group = negative[np.lexsort((reduced[negative], group[negative]))]
         firsts = by_group[np.r_[True, group[by_group][1:] != group[by_group][:-1]]]
         add(firsts[np.argsort(reduced[firsts], kind="stable")[:per_round]])
+
+
+def mast_aware_bound(
+    lp: LPSolution, site_of: I64, mast_cost: float, sensor_cost: float
+) -> float:
+    """A proven lower bound on the mast-aware LP (so on the cost of every plan) from
+    the last duals of the sensors LP (solved with unit costs), scaled by the largest ``t`` for which every site ``s`` can share
+    ``mast_cost`` out as the link duals its candidates need,
+    ``sum_{c at s} max(0, t sensor_cost priced_c - sensor_cost) <= mast_cost``;
+    the bound is then ``t sensor_cost value``. 0 when nothing was solved."""
+    if not np.isfinite(lp.value) or len(lp.priced) == 0 or sensor_cost <= 0:
+        return 0.0
+    n_sites = int(site_of.max()) + 1
+
+    def fits(t: float) -> bool:
+        excess = np.maximum(0.0, sensor_cost * (t * lp.priced - 1.0))
+        return bool((np.bincount(site_of, weights=excess, minlength=n_sites) <= mast_cost).all())
+
+    lo, hi = 0.0, 1.0
+    while fits(hi) and hi < 1e6:  # the feasible t may exceed 1
+        lo, hi = hi, 2 * hi
+    for _ in range(50):  # bisection; lo stays feasible
+        mid = (lo + hi) / 2
+        lo, hi = (mid, hi) if fits(mid) else (lo, mid)
+    return max(0.0, lo * sensor_cost * lp.value * (1 - SAFETY) - SAFETY)
 
 
 @dataclass(frozen=True)
@@ -297,3 +336,57 @@ def site_cover(
     if len(values) == n + n_sites and info.primal_solution_status == 2:  # feasible
         chosen = np.flatnonzero(values[n:] > 0.5).astype(np.int64)
     return SiteSolution(bound, chosen)
+
+
+def sensors_on_sites(
+    inst: CoverInstance,
+    site_of: I64,
+    sites: I64,
+    start: list[int],
+    mast_cost: float,
+    sensor_cost: float,
+    deadline: float | None = None,
+    stop: threading.Event | None = None,
+) -> Generator[None, None, list[int]]:
+    """The best plan on ``sites`` by the mast-aware MILP: every candidate at those
+    sites (x_c, binary, ``sensor_cost``), each site (y_s, binary, ``mast_cost``),
+    ``x_c <= y_s``, and the cover rows. ``start`` (candidates at those sites that
+    reach the goal) is HiGHS' first incumbent. At most ``MAX_NODES`` branch-and-bound
+    nodes, so the answer does not depend on the machine's speed; stops at ``deadline``
+    or ``stop`` with the best plan so far. Returns the chosen candidates."""
+    cols = np.flatnonzero(np.isin(site_of, sites)).astype(np.int64)
+    site_idx = np.searchsorted(sites, site_of[cols])
+    n, n_cols, n_sites = inst.n_points, len(cols), len(sites)
+    limit = None if deadline is None else deadline - time.perf_counter()
+    h = _new_highs(limit)
+    h.setOptionValue("mip_max_nodes", MAX_NODES)
+    _cover_rows(h, n, inst.goal)
+    _add_columns(h, inst.matrix[cols], np.full(n_cols, sensor_cost), 1.0)
+    none = np.zeros(0, dtype=np.int32)
+    h.addCols(n_sites, np.full(n_sites, mast_cost), np.zeros(n_sites), np.ones(n_sites), 0,
+              np.zeros(n_sites, dtype=np.int32), none, np.zeros(0))  # fmt: skip
+    # x_c - y_s <= 0, one row per candidate
+    index = np.empty(2 * n_cols, dtype=np.int32)
+    index[0::2] = n + np.arange(n_cols)
+    index[1::2] = n + n_cols + site_idx
+    value = np.tile([1.0, -1.0], n_cols)
+    h.addRows(n_cols, np.full(n_cols, -highspy.kHighsInf), np.zeros(n_cols), 2 * n_cols,
+              (2 * np.arange(n_cols)).astype(np.int32), index, value)  # fmt: skip
+    binary = np.arange(n, n + n_cols + n_sites, dtype=np.int32)
+    h.changeColsIntegrality(
+        len(binary), binary, np.array([highspy.HighsVarType.kInteger] * len(binary))
+    )
+    picked = np.isin(cols, start)
+    covered = np.zeros(n, dtype=bool)
+    for c in cols[picked]:
+        covered[inst.covers(int(c))] = True
+    first = highspy.HighsSolution()
+    first.col_value = np.concatenate(
+        [covered, picked, np.isin(np.arange(n_sites), site_idx[picked])]
+    ).astype(float).tolist()
+    h.setSolution(first)
+    yield from _run(h, stop)
+    values = np.asarray(h.getSolution().col_value)
+    if len(values) != n + n_cols + n_sites or h.getInfo().primal_solution_status != 2:
+        return list(start)
+    return [int(c) for c in cols[values[n : n + n_cols] > 0.5]]

@@ -5,17 +5,20 @@ On the problem's candidate set (``core/candidates.py``):
 1. a greedy plan gives the first columns and a first incumbent;
 2. the LP relaxation by column generation (``bound.cover_lp``) and, in a second
    thread, the fewest masts by a MILP over positions (``bound.site_cover``) prove
-   the lower bounds: sensors, masts, and cost = mast_cost x masts + sensor_cost x
-   sensors;
-3. plans are built from the LP: the candidates at or above a threshold of their LP
+   the lower bounds: sensors, masts, and cost (the larger of mast_cost x masts +
+   sensor_cost x sensors and the mast-aware LP's bound);
+3. still in the second thread, the mast-aware MILP on the fewest masts' positions
+   (``bound.sensors_on_sites``, started from a greedy plan on them) gives the plan
+   with the lowest cost on those masts;
+4. plans are built from the LP: the candidates at or above a threshold of their LP
    value, completed greedily from a pool (the restricted LP's columns and every
    candidate whose reduced cost is within ``POOL_REDUCED_COST``), then improved by
-   pruning and two-for-one swaps (``cover.py``); a plan on the fewest masts (the
-   MILP's positions, the fewest sensors on them) joins them; the one that is best
-   for the objective wins.
+   pruning and two-for-one swaps (``cover.py``); with the plan on the fewest masts,
+   the one that is best for the objective wins.
 
-Deterministic (no random choice; the seed plays no part). ``time_limit_s`` stops the
-bounds where they are (still proven) and plans from what the LP has so far.
+Deterministic (no random choice; the seed plays no part; HiGHS' MILP is limited in
+nodes, not seconds). ``time_limit_s`` stops the bounds where they are (still proven)
+and plans from what the LP has so far.
 """
 
 from __future__ import annotations
@@ -31,7 +34,15 @@ from numpy.typing import NDArray
 from ..candidates import CandidateSet
 from ..problem import Problem
 from .base import FixedSensor, PlanBound, Progress, Solution, candidates_of, newly_covered
-from .bound import LPProgress, LPSolution, SiteSolution, cover_lp, site_cover
+from .bound import (
+    LPProgress,
+    LPSolution,
+    SiteSolution,
+    cover_lp,
+    mast_aware_bound,
+    sensors_on_sites,
+    site_cover,
+)
 from .cover import Cover, CoverInstance, complete, improve
 
 I64 = NDArray[np.int64]
@@ -102,18 +113,54 @@ def _both(
     return values[0], values[1]
 
 
+def mast_aware_costs(problem: Problem, n_candidates: int) -> tuple[float, float]:
+    """(mast, sensor) costs of the mast-aware MILP for the problem's objective; for
+    masts, one mast outweighs every sensor there is."""
+    s = problem.settings
+    if s.objective == "sensors":
+        return 0.0, 1.0
+    if s.objective == "masts":
+        return float(n_candidates + 1), 1.0
+    return s.mast_cost, s.sensor_cost
+
+
+def masts_then_plan(
+    problem: Problem,
+    cands: CandidateSet,
+    inst: CoverInstance,
+    deadline: float | None,
+    stop: threading.Event | None,
+    plan: bool,
+) -> Generator[None, None, tuple[SiteSolution, list[int] | None]]:
+    """The fewest masts and, when ``plan``, the best plan on their positions by the
+    mast-aware MILP (None when there is none)."""
+    sites = yield from site_cover(inst, cands.position, len(cands.positions), deadline, stop)
+    if not plan or len(sites.sites) == 0 or (stop is not None and stop.is_set()):
+        return sites, None
+    pool = np.flatnonzero(np.isin(cands.position, sites.sites)).astype(np.int64)
+    start = improve(complete(Cover(inst), pool), pool)
+    if start.slack < 0:
+        return sites, None
+    mc, sc = mast_aware_costs(problem, len(pool))
+    chosen = yield from sensors_on_sites(
+        inst, cands.position, sites.sites, start.chosen, mc, sc, deadline, stop
+    )
+    return sites, chosen
+
+
 def prove_bound(
     problem: Problem,
     cands: CandidateSet,
     inst: CoverInstance,
     solution: Solution,
     deadline: float | None,
-    best_value: float | None = None,
     stop: threading.Event | None = None,
-) -> Generator[Progress, None, tuple[PlanBound, LPSolution, SiteSolution, Cover]]:
+    plan: bool = False,
+) -> Generator[Progress, None, tuple[PlanBound, LPSolution, list[int] | None, Cover]]:
     """The lower bounds: the LP by column generation from a greedy plan's columns and,
-    beside it, the fewest masts. Returns the bound, the LP, the sites and the greedy
-    plan. Progress reports the LP's bound on the sensors as it rises."""
+    beside it, the fewest masts (then, when ``plan``, the best plan on them). Returns
+    the bound, the LP, the plan on the fewest masts and the greedy plan. Progress
+    reports the LP's bound on the sensors as it rises."""
     greedy = complete(Cover(inst), np.arange(len(cands), dtype=np.int64))
     lp_gen = cover_lp(
         inst,
@@ -123,19 +170,18 @@ def prove_bound(
         deadline=deadline,
         stop=stop,
     )
-    site_gen = site_cover(inst, cands.position, len(cands.positions), deadline, stop)
     so_far = 0.0
-    both = _both(lp_gen, site_gen)
+    both = _both(lp_gen, masts_then_plan(problem, cands, inst, deadline, stop, plan))
     while True:
         try:
             step = next(both)
         except StopIteration as done:
-            lp, sites = done.value
+            lp, (sites, on_sites) = done.value
             break
         if isinstance(step, LPProgress):
             so_far = step.bound
-        yield solution.progress("search", problem.rho, bound=so_far, best=best_value)
-    return _plan_bound(lp, sites, cands, problem), lp, sites, greedy
+        yield solution.progress("search", problem.rho, bound=so_far)
+    return _plan_bound(lp, sites, cands, problem), lp, on_sites, greedy
 
 
 def prove_and_plan(
@@ -153,12 +199,12 @@ def prove_and_plan(
     def value(plan: list[int]) -> float:
         return plan_cost(cands, plan, s.objective, s.mast_cost, s.sensor_cost)[0]
 
-    bound, lp, sites, greedy = yield from prove_bound(
-        problem, cands, inst, solution, deadline, stop=stop
+    bound, lp, on_sites, greedy = yield from prove_bound(
+        problem, cands, inst, solution, deadline, stop=stop, plan=True
     )
     lower = bound.objective(s.objective, s.mast_cost, s.sensor_cost)
-    plans = [greedy.chosen]
-    for plan in (*_lp_plans(inst, lp), *_site_plans(inst, cands, sites)):
+    plans = [greedy.chosen] + ([on_sites] if on_sites else [])
+    for plan in _lp_plans(inst, lp):
         plans.append(plan)
         best = min(value(p) for p in plans)
         yield solution.progress("search", problem.rho, bound=lower, best=best)
@@ -179,12 +225,14 @@ def bound_only(problem: Problem, solution: Solution) -> Generator[Progress, None
 def _plan_bound(
     lp: LPSolution, sites: SiteSolution, cands: CandidateSet, problem: Problem
 ) -> PlanBound:
+    s = problem.settings
     return PlanBound(
         sensors=lp.integer_bound(),
         masts=sites.bound,
         lp=lp.bound,
         scope=bound_scope(cands, problem),
         rounds=lp.rounds,
+        cost_lp=mast_aware_bound(lp, cands.position, s.mast_cost, s.sensor_cost),
     )
 
 
@@ -201,18 +249,6 @@ def _lp_plans(inst: CoverInstance, lp: LPSolution) -> Iterator[list[int]]:
         cover = improve(complete(Cover(inst, tuple(int(c) for c in kept)), pool), pool)
         if cover.slack >= 0:
             yield cover.chosen
-
-
-def _site_plans(
-    inst: CoverInstance, cands: CandidateSet, sites: SiteSolution
-) -> Iterator[list[int]]:
-    """The fewest sensors on the fewest masts' positions (when the MILP found them)."""
-    if len(sites.sites) == 0:
-        return
-    pool = np.flatnonzero(np.isin(cands.position, sites.sites)).astype(np.int64)
-    cover = improve(complete(Cover(inst), pool), pool)
-    if cover.slack >= 0:
-        yield cover.chosen
 
 
 def in_gain_order(inst: CoverInstance, chosen: list[int]) -> list[int]:
