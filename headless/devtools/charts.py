@@ -112,8 +112,9 @@ def optimize_chart(results: dict[str, Any], path: Path) -> None:
 
 
 def bound_chart(results: dict[str, Any], path: Path) -> None:
-    """Objective against wall seconds per optimizer, one panel per scene, with the lp
-    optimizer's proven lower bound on the cost as a line."""
+    """Objective against wall seconds per optimizer, one panel per scene: each run's
+    plan as a point; for lp, its best plan and its proven lower bound as they rise
+    and fall during the run, and the final bound as a line."""
     scenes = results.get("bound", {}).get("scenes", {})
     if not scenes:
         return
@@ -125,10 +126,21 @@ def bound_chart(results: dict[str, Any], path: Path) -> None:
                        label=f"{r['config']}: {r['sensors']} sensors, {r['masts']} masts")  # fmt: skip
             ax.annotate(f"{r['cost']:g}", (r["wall_s"], r["cost"]), textcoords="offset points",
                         xytext=(5, 3), fontsize=8)  # fmt: skip
+            trace = r.get("trace") or []
+            if trace:
+                t = [p[0] for p in trace] + [r["wall_s"]]
+                best = [p[1] for p in trace] + [r["cost"]]
+                ax.step(t, best, where="post", color=f"C{i}", lw=1, alpha=0.7)
+                proven = [(p[0], p[2]) for p in trace if p[2] is not None]
+                if proven:
+                    ax.step([p[0] for p in proven] + [r["wall_s"]],
+                            [p[1] for p in proven] + [r["lower_bound"]], where="post",
+                            color=f"C{i}", lw=1, ls=":", label=f"{r['config']}: bound so far")  # fmt: skip
         bounds = [r["lower_bound"] for r in cost_rows if r["lower_bound"] is not None]
         if bounds:
-            best = max(bounds)
-            ax.axhline(best, color="k", ls="--", lw=1, label=f"proven lower bound {best:g}")
+            best_bound = max(bounds)
+            ax.axhline(best_bound, color="k", ls="--", lw=1,
+                       label=f"proven lower bound {best_bound:g}")  # fmt: skip
         ax.set_xscale("log")
         ax.set_xlabel("wall seconds (log)")
         ax.set_ylabel("cost = 3 x masts + sensors")

@@ -48,6 +48,7 @@ from autoscoop_blender.core.model.scene import SceneModel, random_points
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA, SensorPose
 from autoscoop_blender.core.run import Run
 from autoscoop_blender.core.settings import CoverageSettings, FitnessParams, OptimizeSettings
+from autoscoop_blender.io.reports import result_dict
 from autoscoop_blender.io.sensor_file import parse_sensors
 from headless.devtools.machine import machine_line
 from headless.files import json_text, load_scene
@@ -602,9 +603,20 @@ def _bound_point(scene_name: str, tiles: tuple[int, ...], name: str) -> dict[str
     scene = scene.cropped(MODEL.range_m)
     settings = BOUND_RUNS[name]
     run = Run(scene, BVHFactory.of(scene), MODEL, settings)
+    # lp's best plan and its proven bound as they change: [s, best, bound]
+    trace: list[list[Any]] = []
+    t0 = time.perf_counter()
+    for p in run.steps():
+        if p.best is not None and (not trace or trace[-1][1:] != [p.best, p.bound]):
+            trace.append([round(time.perf_counter() - t0, 2), p.best, p.bound])
     res = run.result()
     m = res.metrics
     cands = run.problem.candidates
+    # The plan as written (world metres, rounded), evaluated afresh as `headless
+    # coverage` does.
+    again = evaluate_layout(
+        scene, BVHFactory.of(scene)(), parse_sensors(result_dict(res), "the plan"), settings
+    )
     return {
         "config": name,
         "objective_kind": settings.objective,
@@ -619,11 +631,13 @@ def _bound_point(scene_name: str, tiles: tuple[int, ...], name: str) -> dict[str
         "lp_bound": m["lp_bound"],
         "lp_rounds": m["lp_rounds"],
         "coverage_fraction": m["coverage_fraction"],
+        "coverage_recomputed": again.metrics["coverage_fraction"],
         "wall_s": m["wall_s"],
         "target_m2": m["target_area_m2"],
         "candidates": None if cands is None else len(cands),
         "nonzeros": None if cands is None else int(cands.matrix.nnz),
         "peak_rss_mb": _peak_rss_mb(),
+        "trace": trace,
     }
 
 

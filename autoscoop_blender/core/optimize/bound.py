@@ -263,14 +263,13 @@ def cover_lp(
         add(firsts[np.argsort(reduced[firsts], kind="stable")[:per_round]])
 
 
-def mast_aware_bound(
-    lp: LPSolution, site_of: I64, mast_cost: float, sensor_cost: float
-) -> float:
+def mast_aware_bound(lp: LPSolution, site_of: I64, mast_cost: float, sensor_cost: float) -> float:
     """A proven lower bound on the mast-aware LP (so on the cost of every plan) from
-    the last duals of the sensors LP (solved with unit costs), scaled by the largest ``t`` for which every site ``s`` can share
-    ``mast_cost`` out as the link duals its candidates need,
-    ``sum_{c at s} max(0, t sensor_cost priced_c - sensor_cost) <= mast_cost``;
-    the bound is then ``t sensor_cost value``. 0 when nothing was solved."""
+    the last duals of the sensors LP (solved with unit costs): scaled by the largest
+    ``t`` for which every site ``s`` can share ``mast_cost`` out as the link duals its
+    candidates need, ``sum_{c at s} max(0, sensor_cost (t priced_c - 1)) <=
+    mast_cost``, they are feasible for the mast-aware LP's dual, whose value is then
+    ``t sensor_cost value``. 0 when nothing was solved."""
     if not np.isfinite(lp.value) or len(lp.priced) == 0 or sensor_cost <= 0:
         return 0.0
     n_sites = int(site_of.max()) + 1
@@ -381,9 +380,11 @@ def sensors_on_sites(
     for c in cols[picked]:
         covered[inst.covers(int(c))] = True
     first = highspy.HighsSolution()
-    first.col_value = np.concatenate(
-        [covered, picked, np.isin(np.arange(n_sites), site_idx[picked])]
-    ).astype(float).tolist()
+    first.col_value = (
+        np.concatenate([covered, picked, np.isin(np.arange(n_sites), site_idx[picked])])
+        .astype(float)
+        .tolist()
+    )
     h.setSolution(first)
     yield from _run(h, stop)
     values = np.asarray(h.getSolution().col_value)

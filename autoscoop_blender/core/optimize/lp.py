@@ -160,8 +160,12 @@ def prove_bound(
     """The lower bounds: the LP by column generation from a greedy plan's columns and,
     beside it, the fewest masts (then, when ``plan``, the best plan on them). Returns
     the bound, the LP, the plan on the fewest masts and the greedy plan. Progress
-    reports the LP's bound on the sensors as it rises."""
+    reports the greedy plan's objective and, as it rises, what the LP proves of the
+    objective (sensor_cost x its bound for cost; nothing yet for masts)."""
+    s = problem.settings
     greedy = complete(Cover(inst), np.arange(len(cands), dtype=np.int64))
+    best = plan_cost(cands, greedy.chosen, s.objective, s.mast_cost, s.sensor_cost)[0]
+    per_sensor = {"cost": s.sensor_cost, "sensors": 1.0}.get(s.objective)
     lp_gen = cover_lp(
         inst,
         np.ones(len(cands)),
@@ -170,7 +174,7 @@ def prove_bound(
         deadline=deadline,
         stop=stop,
     )
-    so_far = 0.0
+    so_far = None
     both = _both(lp_gen, masts_then_plan(problem, cands, inst, deadline, stop, plan))
     while True:
         try:
@@ -178,9 +182,9 @@ def prove_bound(
         except StopIteration as done:
             lp, (sites, on_sites) = done.value
             break
-        if isinstance(step, LPProgress):
-            so_far = step.bound
-        yield solution.progress("search", problem.rho, bound=so_far)
+        if isinstance(step, LPProgress) and per_sensor is not None:
+            so_far = per_sensor * step.bound
+        yield solution.progress("search", problem.rho, bound=so_far, best=best)
     return _plan_bound(lp, sites, cands, problem), lp, on_sites, greedy
 
 
@@ -204,10 +208,10 @@ def prove_and_plan(
     )
     lower = bound.objective(s.objective, s.mast_cost, s.sensor_cost)
     plans = [greedy.chosen] + ([on_sites] if on_sites else [])
+    yield solution.progress("search", problem.rho, bound=lower, best=min(map(value, plans)))
     for plan in _lp_plans(inst, lp):
         plans.append(plan)
-        best = min(value(p) for p in plans)
-        yield solution.progress("search", problem.rho, bound=lower, best=best)
+        yield solution.progress("search", problem.rho, bound=lower, best=min(map(value, plans)))
     return min(plans, key=value), bound
 
 
