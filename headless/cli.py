@@ -40,7 +40,9 @@ def add_knob_options(parser: argparse.ArgumentParser, cls: type, overrides: bool
         kw: dict[str, Any] = {"dest": setting.path, "help": k.help}
         if k.choices:
             kw["choices"] = [c[0] for c in k.choices]
-            kw["help"] += ": " + "; ".join(f"{value}: {text}" for value, _, text in k.choices)
+            kw["help"] += ": " + "; ".join(
+                f"{value}: {text[:1].lower()}{text[1:]}" for value, _, text in k.choices
+            )
         elif setting.kind is bool:  # a switch that turns the knob on
             kw["action"], kw["const"] = "store_const", True
         else:
