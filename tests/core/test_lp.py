@@ -20,6 +20,7 @@ from autoscoop_blender.core.optimize.bound import (
 from autoscoop_blender.core.optimize.cover import (
     Cover,
     CoverInstance,
+    close_sites,
     complete,
     improve,
     prune,
@@ -187,6 +188,29 @@ def test_cover_moves_keep_the_goal():
     inst8 = instance(rows, 10, 8)
     cover = improve(complete(Cover(inst8), np.array([0, 1, 2, 4])), np.array([0, 1, 2, 4]))
     assert cover.slack >= 0 and len(cover.chosen) == 2
+
+
+def test_greedy_per_cost_and_closing_masts():
+    """Points 0-11. Site 0 holds candidates 0-2 (4 points each, together all 12);
+    site 1 holds candidate 3 (points 0-5), site 2 candidate 4 (points 6-11).
+    From candidate 0 (site 0 in use), plain greedy takes candidate 4 (6 new points)
+    and then 1: two masts, cost 2 x 3 + 3 = 9. Per cost, with a mast at 3, candidates
+    1 and 2 (4 new points for 1 each, on the mast in use) beat candidate 4 (6 for 4):
+    one mast, cost 3 + 3 = 6."""
+    rows = [range(0, 4), range(4, 8), range(8, 12), range(0, 6), range(6, 12)]
+    inst = instance(rows, 12, 12)
+    site_of = np.array([0, 0, 0, 1, 2])
+    every = np.arange(5)
+    assert complete(Cover(inst, (0,)), every).chosen == [0, 4, 1]
+    by_cost = complete(Cover(inst, (0,)), every, site_of, mast_cost=3.0, sensor_cost=1.0)
+    assert by_cost.chosen == [0, 1, 2]
+    # From a plan on all three sites (cost 14): closing sites 1 and 2 (re-covering
+    # from the masts left) leaves site 0's three (cost 6); site 0 cannot close.
+    spread = Cover(inst, (0, 1, 2, 3, 4))
+    closed = close_sites(spread, site_of, 3.0, 1.0)
+    assert sorted(closed.chosen) == [0, 1, 2] and closed.slack == 0
+    # With cheap masts, nothing is worth closing from the two-mast plan.
+    assert sorted(close_sites(Cover(inst, (3, 4)), site_of, 0.5, 1.0).chosen) == [3, 4]
 
 
 def _scene(targets, areas, boxes=()):

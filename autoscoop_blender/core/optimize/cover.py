@@ -5,13 +5,15 @@ the goal: at least ``goal`` points covered. A ``Cover`` is a set of chosen candi
 with the number of them covering each point. The moves, each cheap enough to repeat
 thousands of times on 130,000 candidates:
 
-* ``complete``: add the candidate that covers the most points still uncovered, until
-  the goal is met (greedy; ``weight`` biases it, e.g. towards an LP solution);
+* ``complete``: add the candidate that covers the most points still uncovered (or
+  the most per cost, a new mast costing extra), until the goal is met (greedy);
 * ``prune``: drop chosen candidates whose points stay covered well enough without them
   (the one whose removal loses the fewest points first);
 * ``swap_two_for_one``: replace two chosen candidates by one of a pool that covers
   what only those two covered (less the slack over the goal);
-* ``improve``: prune and swap until neither helps.
+* ``improve``: prune and swap until neither helps;
+* ``close_sites``: close a mast and cover its points from the other masts, while that
+  lowers the cost.
 
 They are hand-written because no library does partial set cover moves on sparse
 matrices; the LP behind them is HiGHS (``bound.py``).
@@ -25,7 +27,6 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import sparse
 
-F32 = NDArray[np.float32]
 I64 = NDArray[np.int64]
 
 
@@ -87,26 +88,68 @@ class Cover:
         return int(np.count_nonzero(self.count[self.inst.covers(c)] == 1))
 
 
-def complete(cover: Cover, pool: I64, weight: F32 | None = None) -> Cover:
+def complete(
+    cover: Cover,
+    pool: I64,
+    site_of: I64 | None = None,
+    mast_cost: float = 0.0,
+    sensor_cost: float = 1.0,
+) -> Cover:
     """Add candidates of ``pool`` until the goal is met: each time the one covering
-    the most uncovered points (times ``weight``, per pool entry, if given). Stops early
-    when no candidate adds a point."""
+    the most uncovered points or, given each candidate's site (``site_of``, all
+    candidates), the most per cost: ``sensor_cost``, plus ``mast_cost`` at a site no
+    chosen candidate uses yet. Stops early when no candidate adds a point."""
     inst = cover.inst
     sub = inst.matrix[pool]
     by_point = sub.tocsc()
     gains = np.asarray(sub @ (cover.count == 0).astype(np.float32)).ravel()
-    while cover.slack < 0:
-        score = gains if weight is None else gains * weight
-        k = int(np.argmax(score))
+    price = np.ones(len(pool))
+    if site_of is not None:
+        site = site_of[pool]
+        used = np.isin(site, site_of[cover.chosen])
+        # A free sensor on a mast in use is taken first; never divide by 0.
+        price = np.maximum(sensor_cost + mast_cost * ~used, 1e-9)
+    while cover.slack < 0 and len(pool):
+        k = int(np.argmax(gains / price))
         if gains[k] <= 0:
             break
         c = int(pool[k])
         new = inst.covers(c)
         new = new[cover.count[new] == 0]
         cover.add(c)
+        if site_of is not None:
+            price[site == site_of[c]] = max(sensor_cost, 1e-9)
         # Points covered now add nothing to any candidate any more.
         gains -= np.asarray(by_point[:, new].sum(axis=1)).ravel()
     return cover
+
+
+def close_sites(cover: Cover, site_of: I64, mast_cost: float, sensor_cost: float) -> Cover:
+    """Close masts while that lowers the cost (``mast_cost`` per site in use plus
+    ``sensor_cost`` per candidate): for each site in use, the one with the fewest
+    candidates first, drop its candidates, cover the goal again from the candidates
+    at the other sites in use (greedy, pruned) and keep that if it costs less.
+    Returns the cheapest cover found (``cover`` itself if none is cheaper)."""
+    inst = cover.inst
+
+    def cost(c: Cover) -> float:
+        return mast_cost * len(np.unique(site_of[c.chosen])) + sensor_cost * len(c.chosen)
+
+    best = cover
+    closed = True
+    while closed:  # passes over the sites in use until none closes
+        closed = False
+        sites, counts = np.unique(site_of[best.chosen], return_counts=True)
+        in_use = set(sites.tolist())
+        for s in sites[np.lexsort((sites, counts))]:
+            rest = np.array(sorted(in_use - {int(s)}), dtype=np.int64)
+            kept = [c for c in best.chosen if site_of[c] != s]
+            pool = np.flatnonzero(np.isin(site_of, rest)).astype(np.int64)
+            trial = prune(complete(Cover(inst, kept), pool))
+            if trial.slack >= 0 and cost(trial) < cost(best):
+                best, closed = trial, True
+                in_use = set(site_of[best.chosen].tolist())
+    return best
 
 
 def prune(cover: Cover) -> Cover:

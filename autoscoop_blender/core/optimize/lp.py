@@ -7,9 +7,10 @@ On the problem's candidate set (``core/candidates.py``):
    thread, the fewest masts by a MILP over positions (``bound.site_cover``) prove
    the lower bounds: sensors, masts, and cost (the larger of mast_cost x masts +
    sensor_cost x sensors and the mast-aware LP's bound);
-3. still in the second thread, the mast-aware MILP on the fewest masts' positions
-   (``bound.sensors_on_sites``, started from a greedy plan on them) gives the plan
-   with the lowest cost on those masts;
+3. still in the second thread, a plan on the fewest masts' positions: greedy per
+   cost (a new mast costs extra), improved, masts closed while that is cheaper, and
+   the mast-aware MILP over the masts left (``bound.sensors_on_sites``, started from
+   that plan) when it is small;
 4. plans are built from the LP: the candidates at or above a threshold of their LP
    value, completed greedily from a pool (the restricted LP's columns and every
    candidate whose reduced cost is within ``POOL_REDUCED_COST``), then improved by
@@ -43,7 +44,7 @@ from .bound import (
     sensors_on_sites,
     site_cover,
 )
-from .cover import Cover, CoverInstance, complete, improve
+from .cover import Cover, CoverInstance, close_sites, complete, improve
 
 I64 = NDArray[np.int64]
 
@@ -51,6 +52,10 @@ I64 = NDArray[np.int64]
 POOL_REDUCED_COST = 0.2
 # LP values at or above which a candidate is kept when rounding, one plan each.
 THRESHOLDS = (0.9, 0.7, 0.5, 0.3, 0.2)
+# The mast-aware MILP runs on at most this many candidates: two_routes' 13 masts
+# have 2,611 and HiGHS proves the optimum at its root in 18 s; on three tiles of
+# full_ground, 49 masts with about 10,000 took it 1,070 s.
+MAX_MILP_CANDIDATES = 4000
 
 
 def instance(cands: CandidateSet, problem: Problem, covered: NDArray[np.bool_]) -> CoverInstance:
@@ -132,19 +137,25 @@ def masts_then_plan(
     stop: threading.Event | None,
     plan: bool,
 ) -> Generator[None, None, tuple[SiteSolution, list[int] | None]]:
-    """The fewest masts and, when ``plan``, the best plan on their positions by the
-    mast-aware MILP (None when there is none)."""
+    """The fewest masts and, when ``plan``, a plan on their positions (the best the
+    MILP found; its bound proves how few masts any plan needs): the cheapest by
+    greedy per cost, improved, then with masts closed while that is cheaper, and
+    finally the mast-aware MILP over the masts left when it has at most
+    ``MAX_MILP_CANDIDATES`` candidates. None when there is no plan."""
     sites = yield from site_cover(inst, cands.position, len(cands.positions), deadline, stop)
     if not plan or len(sites.sites) == 0 or (stop is not None and stop.is_set()):
         return sites, None
-    pool = np.flatnonzero(np.isin(cands.position, sites.sites)).astype(np.int64)
-    start = improve(complete(Cover(inst), pool), pool)
+    site_of = cands.position
+    pool = np.flatnonzero(np.isin(site_of, sites.sites)).astype(np.int64)
+    mc, sc = mast_aware_costs(problem, len(pool))
+    start = improve(complete(Cover(inst), pool, site_of, mc, sc), pool)
+    start = close_sites(start, site_of, mc, sc)
     if start.slack < 0:
         return sites, None
-    mc, sc = mast_aware_costs(problem, len(pool))
-    chosen = yield from sensors_on_sites(
-        inst, cands.position, sites.sites, start.chosen, mc, sc, deadline, stop
-    )
+    used = np.unique(site_of[start.chosen])
+    if np.count_nonzero(np.isin(site_of, used)) > MAX_MILP_CANDIDATES:
+        return sites, start.chosen
+    chosen = yield from sensors_on_sites(inst, site_of, used, start.chosen, mc, sc, deadline, stop)
     return sites, chosen
 
 
