@@ -171,6 +171,19 @@ def newly_covered(covered: NDArray[np.bool_], ordinals: NDArray[np.int64]) -> ND
     return ordinals[~covered[ordinals]]
 
 
+def fix_candidate(problem: Problem, solution: Solution, cands: CandidateSet, c: int) -> FixedSensor:
+    """Fix candidate ``c`` as a sensor: its pose evaluated afresh (the rays counted),
+    its fitness the points it newly covers."""
+    pose = cands.pose(problem, c)
+    cov = problem.evaluate(pose)
+    solution.sight_rays += cov.rays
+    solution.evaluations += 1
+    newly = newly_covered(solution.covered, cov.covered)
+    sensor = FixedSensor(pose, float(len(newly)), 0, 0, newly)
+    solution.fix(sensor)
+    return sensor
+
+
 def candidates_of(problem: Problem, solution: Solution) -> Generator[Progress, None, CandidateSet]:
     """The problem's candidate set, reporting progress while it is built."""
     build = build_candidates(problem)

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..problem import Problem
-from .base import FixedSensor, Progress, Solution, candidates_of, newly_covered
+from .base import Progress, Solution, candidates_of, fix_candidate
 
 # A candidate on a mast already used wins against a new mast that adds up to this
 # fraction more (0: only on ties).
@@ -62,15 +62,9 @@ class Greedy:
                 )
                 return solution
             pick = pick_candidate(gains, used[cands.position])
-            pose = cands.pose(problem, pick)
-            cov = problem.evaluate(pose)
-            solution.sight_rays += cov.rays
-            solution.evaluations += 1
-            newly = newly_covered(solution.covered, cov.covered)
-            sensor = FixedSensor(pose, float(len(newly)), 0, 0, newly)
-            solution.fix(sensor)
+            sensor = fix_candidate(problem, solution, cands, pick)
             # A point covered now adds nothing to any candidate any more.
-            gains -= np.asarray(by_point[:, newly].sum(axis=1)).ravel()
+            gains -= np.asarray(by_point[:, sensor.newly].sum(axis=1)).ravel()
             used[cands.position[pick]] = True
             yield solution.progress("fixed", rho, fixed=sensor)
         solution.stop_reason = f"reached rho = {rho:.0%} of the target"

@@ -34,7 +34,7 @@ from numpy.typing import NDArray
 
 from ..candidates import CandidateSet
 from ..problem import Problem
-from .base import FixedSensor, PlanBound, Progress, Solution, candidates_of, newly_covered
+from .base import PlanBound, Progress, Solution, candidates_of, fix_candidate
 from .bound import (
     LPProgress,
     LPSolution,
@@ -317,13 +317,7 @@ class LPPlanner:
             if len(solution.sensors) >= problem.max_sensors:
                 solution.stop_reason = f"stopped at max_sensors = {problem.max_sensors}"
                 return solution
-            pose = cands.pose(problem, c)
-            cov = problem.evaluate(pose)
-            solution.sight_rays += cov.rays
-            solution.evaluations += 1
-            newly = newly_covered(solution.covered, cov.covered)
-            sensor = FixedSensor(pose, float(len(newly)), 0, 0, newly)
-            solution.fix(sensor)
+            sensor = fix_candidate(problem, solution, cands, c)
             yield solution.progress("fixed", problem.rho, fixed=sensor)
         late = self.stop.is_set() or (deadline is not None and time.perf_counter() > deadline)
         if problem.reached(solution.n_covered):
