@@ -147,7 +147,8 @@ def bound_chart(results: dict[str, Any], path: Path) -> None:
         ax.set_title(scene, fontsize=10)
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
-    fig.suptitle(f"Objective against time, with the bound ({results.get('date')}, "
+    when = results["bound"].get("date", results.get("date"))
+    fig.suptitle(f"Objective against time, with the bound ({when}, "
                  f"{results.get('machine')})", fontsize=9)  # fmt: skip
     fig.tight_layout()
     fig.savefig(path, dpi=110)
