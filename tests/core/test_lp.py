@@ -12,10 +12,13 @@ from scipy import sparse
 from autoscoop_blender.core.model.scene import Area, SceneModel
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA
 from autoscoop_blender.core.optimize.bound import (
+    combined_bound,
     cover_lp,
     mast_aware_bound,
+    parts_of,
     sensors_on_sites,
     site_cover,
+    split_cover_lp,
 )
 from autoscoop_blender.core.optimize.cover import (
     Cover,
@@ -26,6 +29,7 @@ from autoscoop_blender.core.optimize.cover import (
     prune,
     swap_two_for_one,
 )
+from autoscoop_blender.core.optimize import lp as lp_module
 from autoscoop_blender.core.run import Run
 from autoscoop_blender.core.settings import OptimizeSettings
 from tests.core.flat import box_caster, box_mesh
@@ -93,6 +97,69 @@ def test_bounds_never_exceed_the_brute_force_optimum(seed):
     every = np.arange(inst.matrix.shape[0])
     cover = improve(complete(Cover(inst), every), every)
     assert cover.slack >= 0 and len(cover.chosen) >= best
+
+
+def test_the_fewest_masts_lp_alone_bounds_them():
+    """Without the MILP the masts bound is the LP's rounded up: three candidates at
+    three sites, each covering two of three points, goal 3: the LP takes each at
+    1/2 (1.5), so at least 2 masts; no set is found."""
+    inst = instance([[0, 1], [1, 2], [0, 2]], 3, 3)
+    group = np.arange(3)
+    lp_only = drain(site_cover(inst, group, 3, milp=False))
+    assert lp_only.bound == 2 and len(lp_only.sites) == 0
+    assert sorted(lp_only.lp_sites) == [0, 1, 2]
+    full = drain(site_cover(inst, group, 3))
+    assert full.bound == 2 == len(full.sites)
+
+
+def test_parts_are_compact_and_even():
+    """Two clusters 1 km apart split into two parts, one each; four parts of a long
+    strip are four runs of consecutive points, 25 each."""
+    rng = np.random.default_rng(3)
+    xy = np.vstack([rng.uniform(0, 10, (30, 2)), rng.uniform(0, 10, (30, 2)) + [1000, 0]])
+    part = parts_of(xy, 2)
+    assert set(part[:30]) == {part[0]} and set(part[30:]) == {part[30]} and part[0] != part[30]
+    strip = np.column_stack([np.arange(100.0), np.zeros(100)])
+    part = parts_of(strip, 4)
+    assert np.bincount(part).tolist() == [25] * 4
+    assert np.all(np.diff(part) >= 0)  # consecutive runs along x
+
+
+def test_combined_bound_is_the_best_split_of_the_goal():
+    """Two parts with value lines g - 2 and 2 g (5 points each), goal 6: the best
+    split gives part 0 five points (5 - 2 = 3) and part 1 one (2): 5. With an
+    unsolved part (line 0) that can cover the goal alone, nothing is proven."""
+    lines, coverable = [(1.0, 2.0), (2.0, 0.0)], [5, 5]
+    by_hand = min(
+        max(0.0, g - 2.0) + max(0.0, 2.0 * (6 - g)) for g in np.linspace(1, 5, 401)
+    )
+    assert combined_bound(lines, coverable, 6) == pytest.approx(5.0) == pytest.approx(by_hand)
+    assert combined_bound([(1.0, 2.0), (0.0, 0.0)], [5, 6], 6) == 0.0
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_the_lp_in_parts_bounds_the_whole(seed):
+    """Solved in two parts (candidates seeing both shared out by their points), the
+    bound never exceeds the whole LP's value (so never the optimum); on two equal
+    halves no candidate spans, it is the whole LP's value."""
+    rng = np.random.default_rng(200 + seed)
+    inst = random_instance(rng, n_cand=14, n_points=24)
+    xy = np.column_stack([np.arange(24.0), np.zeros(24)])
+    inst = CoverInstance(inst.matrix, inst.goal, xy)
+    ones, group = np.ones(14), np.arange(14)
+    whole = drain(cover_lp(inst, ones, group, np.arange(1), integral=False))
+    split = drain(split_cover_lp(inst, ones, group, np.arange(1), parts_of(xy, 2), rel_gap=0))
+    assert split.parts == 2 and 0 <= split.bound <= whole.value + 1e-6
+    assert split.bound <= brute_force(inst) + 1e-6
+    # Two copies of one instance, side by side, goal doubled.
+    half = random_instance(rng, n_cand=8, n_points=12)
+    m = sparse.block_diag([half.matrix, half.matrix]).tocsr()
+    xy2 = np.column_stack([np.arange(24.0), np.zeros(24)])
+    twice = CoverInstance(m, 2 * half.goal, xy2)
+    ones2, group2 = np.ones(16), np.arange(16)
+    whole2 = drain(cover_lp(twice, ones2, group2, np.arange(1), integral=False))
+    split2 = drain(split_cover_lp(twice, ones2, group2, np.arange(1), parts_of(xy2, 2), rel_gap=0))
+    assert split2.bound == pytest.approx(whole2.value, rel=1e-4)
 
 
 def cheapest(inst, group, mast_cost, sensor_cost, sites=None):
@@ -310,3 +377,15 @@ def test_stopping_early_keeps_the_best_plan_and_a_proven_bound():
     assert m["lower_bound"] <= full["lower_bound"] and full["objective"] <= m["objective"]
     # The ES has no early stop: Esc cancels it.
     assert not Run(scene, box_caster(), PAPER_CAMERA, replace(LP, optimizer="es")).stop_early()
+
+
+def test_milp_candidates_are_the_largest_per_site_within_the_limit(monkeypatch):
+    """Two sites of three candidates (sizes 1, 3, 2 and 2, 1, 3), a limit of 4: two a
+    site, the largest (1 and 2; 5 and 3), and the plan's candidate 0 besides."""
+    monkeypatch.setattr(lp_module, "MAX_MILP_CANDIDATES", 4)
+    inst = instance([[0], [0, 1, 2], [0, 1], [0, 1], [0], [0, 1, 2]], 3, 3)
+    site_of = np.array([0, 0, 0, 1, 1, 1])
+    cols = lp_module.milp_candidates(inst, site_of, np.array([0, 1]), [0])
+    assert cols.tolist() == [0, 1, 2, 3, 5]
+    monkeypatch.setattr(lp_module, "MAX_MILP_CANDIDATES", 6)
+    assert lp_module.milp_candidates(inst, site_of, np.array([1]), [3]).tolist() == [3, 4, 5]

@@ -21,10 +21,19 @@ feasible for the dual of the full LP, so ``t z`` is a proven lower bound on it
 reduced cost the bound equals ``z``, the LP value. For integer objectives the search
 may stop as soon as ``ceil(bound) == ceil(z)``: the integer bound cannot rise further.
 
+**In parts.** The restricted LP's solves grow faster than the target (three tiles of
+full_ground: 3 x the candidates of two_routes, 8 x the LP's time), so a large target
+is solved in compact parts of its points (``split_cover_lp``), each an LP of
+two_routes' size, and the parts' bounds combined: the time grows with the number of
+parts.
+
 **Masts.** The fewest mast positions whose candidates together cover ``goal`` points:
 a small MILP over positions (each covers the union of its candidates' points),
 solved by HiGHS; its proven dual bound is the masts bound, and its solution a set of
-sites a plan may use.
+sites a plan may use. Its LP relaxation, solved first, gives a second such set: the
+sites with a positive value (on three tiles of full_ground 59 of 1,995, where the
+MILP keeps 34; a plan on the 59 costs 236, on the 34 it costs 277, because fewer
+masts need many more sensors).
 
 **Masts and sensors together.** The mast-aware model links each candidate to its
 mast's site, ``x_c <= y_s``, and costs ``mast_cost`` per open site plus
@@ -162,7 +171,8 @@ class LPSolution:
     a proven lower bound on the full LP's value; columns, x: the candidates in the
     restricted LP and their values; priced, reduced: (C,) every candidate's dual
     weight (the last point duals summed over its points) and its reduced cost, cost
-    less that; complete: no candidate could improve the LP any more.
+    less that; complete: no candidate could improve the LP any more; parts: how many
+    parts of the target it was solved in (``split_cover_lp``).
     """
 
     value: float
@@ -173,6 +183,11 @@ class LPSolution:
     reduced: F64
     rounds: int
     complete: bool
+    # The bound as a line in the goal g: LP(g) >= slope g - intercept for every g
+    # (from the same dual solution; see ``split_cover_lp``).
+    slope: float = 0.0
+    intercept: float = 0.0
+    parts: int = 1
 
     def integer_bound(self) -> int:
         """The bound on an integer objective: the next integer at or above it."""
@@ -188,12 +203,14 @@ def cover_lp(
     integral: bool = True,
     deadline: float | None = None,
     stop: threading.Event | None = None,
+    rel_gap: float = 0.0,
 ) -> Generator[LPProgress | None, None, LPSolution]:
     """The LP relaxation by column generation (see the module docstring).
 
     cost: (C,) > 0 per candidate; group: (C,) its position (one new column per group
     and round); initial: candidates to start from (e.g. a greedy plan); integral: stop
-    once the integer bound is final; deadline: ``time.perf_counter()`` to stop at, and
+    once the integer bound is final; rel_gap: stop once the bound is within this
+    fraction of the LP's value; deadline: ``time.perf_counter()`` to stop at, and
     stop: an event to stop at once (the bound then holds, the LP is not complete; a
     round cut short is dropped). Yields None while HiGHS works and an ``LPProgress``
     after each round.
@@ -224,7 +241,7 @@ def cover_lp(
             _add_columns(h, matrix[cols], cost[cols], highspy.kHighsInf)
 
     add(np.unique(np.asarray(initial, dtype=np.int64)))
-    best = 0.0
+    best, line = 0.0, (0.0, 0.0)
     rounds = 0
     # Before any round: the initial columns as the plan, no bound, nothing priced.
     last = LPSolution(
@@ -237,30 +254,169 @@ def cover_lp(
             return last  # stopped in the middle of a solve: its values are not optimal
         sol = h.getSolution()
         value = float(h.getInfo().objective_function_value)
-        duals = np.asarray(sol.row_dual)[:n]
+        row_dual = np.maximum(np.asarray(sol.row_dual), 0.0)  # >= 0 up to round-off
+        duals, sigma = row_dual[:n], float(row_dual[n])
         priced = np.asarray(matrix @ duals.astype(matrix.dtype), dtype=float)
         reduced = cost - priced
         with np.errstate(divide="ignore"):
             scale = min(1.0, float(np.min(np.where(priced > 0, cost / priced, np.inf))))
+        # The scaled duals are feasible for the full LP's dual at every goal g: its
+        # value there, scale (sigma g - sum_n max(0, sigma - pi_n)), is a line in g.
+        slope = scale * sigma * (1 - SAFETY)
+        intercept = scale * float(np.maximum(0.0, sigma - duals).sum()) + SAFETY
+        if slope * inst.goal - intercept > best:
+            best, line = slope * inst.goal - intercept, (slope, intercept)
         best = max(best, scale * value * (1 - SAFETY) - SAFETY)
         yield LPProgress(rounds, value, best, len(order))
-        negative = np.flatnonzero(reduced < -1e-9)
+        # Columns in the LP priced below 0 only by round-off (duals clipped at 0) are
+        # not new: the LP is complete when no other candidate is.
+        negative = np.flatnonzero((reduced < -1e-9) & ~in_lp)
         complete = len(negative) == 0
         done_int = integral and math.ceil(best - 1e-6) >= math.ceil(value - 1e-6)
+        done_gap = rel_gap > 0 and best >= (1 - rel_gap) * value
         late = deadline is not None and time.perf_counter() > deadline
         late = late or (stop is not None and stop.is_set())
         if complete:
             best = max(best, value * (1 - SAFETY) - SAFETY)
         x = np.asarray(sol.col_value)[first:]
         last = LPSolution(
-            value, best, np.array(order, dtype=np.int64), x, priced, reduced, rounds, complete
-        )
-        if complete or done_int or late:
+            value, best, np.array(order, dtype=np.int64), x, priced, reduced, rounds, complete,
+            *line,
+        )  # fmt: skip
+        if complete or done_int or done_gap or late:
             return last
         # The best candidate of each group, the most negative groups first.
         by_group = negative[np.lexsort((reduced[negative], group[negative]))]
         firsts = by_group[np.r_[True, group[by_group][1:] != group[by_group][:-1]]]
         add(firsts[np.argsort(reduced[firsts], kind="stable")[:per_round]])
+
+
+def parts_of(xy: F64, n_parts: int) -> I64:
+    """(N,) the part of each point (xy: (N, 2) m): the points split in two at a
+    quantile of their longer extent, again and again, into ``n_parts`` compact parts
+    of nearly equal counts (compact, so that few candidates see into two parts)."""
+    part = np.zeros(len(xy), dtype=np.int64)
+
+    def split(idx: I64, k: int, first: int) -> None:
+        if k == 1 or len(idx) == 0:
+            part[idx] = first
+            return
+        axis = int(np.argmax(np.ptp(xy[idx], axis=0)))
+        idx = idx[np.argsort(xy[idx, axis], kind="stable")]
+        cut = round(len(idx) * (k // 2) / k)
+        split(idx[:cut], k // 2, first)
+        split(idx[cut:], k - k // 2, first + k // 2)
+
+    split(np.arange(len(xy)), n_parts, 0)
+    return part
+
+
+def combined_bound(lines: list[tuple[float, float]], coverable: list[int], goal: int) -> float:
+    """The least total of the parts' LP values over every way to split ``goal`` among
+    them, each part's value bounded below by its line (slope, intercept) and by 0,
+    its share of the goal at most what it can cover (together at least ``goal``).
+    Closed form: each part covers up to ``intercept / slope`` points for free; the
+    rest of the goal goes to the parts with the smallest slopes first. 0 when the
+    free points reach the goal."""
+    free = [min(c, b / a) if a > 0 else c for (a, b), c in zip(lines, coverable, strict=True)]
+    left = goal - sum(free)
+    total = 0.0
+    for k in sorted(range(len(lines)), key=lambda k: lines[k][0]):
+        if left <= 0:
+            break
+        take = min(left, coverable[k] - free[k])
+        total += lines[k][0] * take
+        left -= take
+    return total
+
+
+def _quiet(gen: Generator[LPProgress | None, None, LPSolution]) -> Generator[None, None, LPSolution]:
+    """``gen`` yielding None for its progress: a part's bound is not the whole's."""
+    try:
+        while True:
+            try:
+                next(gen)
+            except StopIteration as done:
+                return done.value
+            yield None
+    finally:
+        gen.close()
+
+
+def split_cover_lp(
+    inst: CoverInstance,
+    cost: F64,
+    group: I64,
+    initial: I64,
+    part: I64,
+    rel_gap: float = 0.005,
+    deadline: float | None = None,
+    stop: threading.Event | None = None,
+) -> Generator[LPProgress | None, None, LPSolution]:
+    """A lower bound on the LP relaxation solved part by part (``part``: (N,) each
+    point's part), for targets too large to solve whole: the LP's time grows faster
+    than its size (two_routes 83 s, three tiles of full_ground 690 s, for 3 x the
+    candidates), each part's stays that of one such.
+
+    Each part is the cover LP of its own points with a copy of every candidate that
+    sees any of them, at the share of the candidate's cost that its points there
+    are of all its points, and the goal split by what each part can cover. Any plan
+    of the whole gives every part a plan at the same total cost, so the parts' LP
+    values, at the best split of the goal, bound the whole LP from below. Each part's
+    duals give its value as a line in its goal (``LPSolution.slope``), and
+    ``combined_bound`` finds the best split of the goal against those lines, so
+    the split of the goal used to solve the parts costs nothing in validity.
+
+    Columns, values and reduced costs of the parts are mapped back to the
+    candidates (the most any part gives a candidate; its reduced costs summed), for
+    the plans built from the LP. Yields as ``cover_lp``, with the bound proven so
+    far after each part.
+    """
+    matrix = inst.matrix
+    n_parts = int(part.max()) + 1 if len(part) else 1
+    sizes = np.maximum(np.diff(matrix.indptr), 1)
+    by_part = np.bincount(part, minlength=n_parts)
+    coverable_all = np.bincount(matrix.indices, minlength=inst.n_points) > 0
+    coverable = [int(np.count_nonzero(coverable_all[part == k])) for k in range(n_parts)]
+    total = max(sum(coverable), 1)
+    lines = [(0.0, 0.0)] * n_parts  # parts not solved yet: 0 for any goal
+    value, rounds, complete = 0.0, 0, True
+    x = np.zeros(matrix.shape[0])
+    priced = np.zeros(matrix.shape[0])
+    in_lp = np.zeros(matrix.shape[0], dtype=bool)
+    for k in range(n_parts):
+        points = np.flatnonzero(part == k)
+        sub = matrix[:, points].tocsr()
+        rows = np.flatnonzero(np.diff(sub.indptr) > 0)
+        if len(rows) == 0 or by_part[k] == 0:
+            continue
+        sub = sub[rows]
+        share = cost[rows] * np.diff(sub.indptr) / sizes[rows]
+        goal = min(coverable[k], math.ceil(inst.goal * coverable[k] / total))
+        start = np.flatnonzero(np.isin(rows, initial))
+        lp = yield from _quiet(cover_lp(
+            CoverInstance(sub, goal), share, group[rows], start, integral=False,
+            deadline=deadline, stop=stop, rel_gap=rel_gap,
+        ))  # fmt: skip
+        if not np.isfinite(lp.value):  # stopped before its first solve
+            complete = False
+            continue
+        lines[k] = (lp.slope, lp.intercept)
+        value += lp.value
+        rounds += lp.rounds
+        complete = complete and lp.complete
+        cols = rows[lp.columns]
+        x[cols] = np.maximum(x[cols], lp.x)
+        in_lp[cols] = True
+        priced[rows] += lp.priced
+        bound = combined_bound(lines, coverable, inst.goal)
+        yield LPProgress(rounds, value, bound, int(np.count_nonzero(in_lp)))
+    bound = combined_bound(lines, coverable, inst.goal)
+    columns = np.flatnonzero(in_lp).astype(np.int64)
+    return LPSolution(
+        value, bound, columns, x[columns], priced, cost - priced, rounds, complete,
+        parts=n_parts,
+    )  # fmt: skip
 
 
 def mast_aware_bound(lp: LPSolution, site_of: I64, mast_cost: float, sensor_cost: float) -> float:
@@ -269,8 +425,9 @@ def mast_aware_bound(lp: LPSolution, site_of: I64, mast_cost: float, sensor_cost
     ``t`` for which every site ``s`` can share ``mast_cost`` out as the link duals its
     candidates need, ``sum_{c at s} max(0, sensor_cost (t priced_c - 1)) <=
     mast_cost``, they are feasible for the mast-aware LP's dual, whose value is then
-    ``t sensor_cost value``. 0 when nothing was solved."""
-    if not np.isfinite(lp.value) or len(lp.priced) == 0 or sensor_cost <= 0:
+    ``t sensor_cost value``. 0 when nothing was solved, or when the LP was solved in
+    parts (their duals are not one dual solution of the whole)."""
+    if not np.isfinite(lp.value) or len(lp.priced) == 0 or sensor_cost <= 0 or lp.parts > 1:
         return 0.0
     n_sites = int(site_of.max()) + 1
 
@@ -289,11 +446,13 @@ def mast_aware_bound(lp: LPSolution, site_of: I64, mast_cost: float, sensor_cost
 
 @dataclass(frozen=True)
 class SiteSolution:
-    """The fewest sites covering the goal: a proven lower bound, and the best set found
-    (optimal when ``bound == len(sites)``)."""
+    """The fewest sites covering the goal: a proven lower bound, the best set found
+    (optimal when ``bound == len(sites)``), and the sites the LP relaxation uses
+    (value > 0; empty if it was not solved)."""
 
     bound: int
     sites: I64
+    lp_sites: I64
 
 
 def site_cover(
@@ -302,10 +461,13 @@ def site_cover(
     n_sites: int,
     deadline: float | None = None,
     stop: threading.Event | None = None,
+    milp: bool = True,
 ) -> Generator[None, None, SiteSolution]:
-    """The fewest sites (mast positions) whose candidates cover the goal: a MILP over
-    sites (see the module docstring); stops at ``deadline``, or when ``stop`` is set,
-    with the bound proven so far and the best set found.
+    """The fewest sites (mast positions) whose candidates cover the goal: the LP
+    relaxation, then, when ``milp``, the MILP over sites (see the module docstring);
+    stops at ``deadline``, or when ``stop`` is set, with the bound proven so far and
+    the best set found. Without the MILP the bound is the LP's rounded up and no set
+    is found.
     """
     m = inst.matrix
     # Site s covers point n when any candidate at s does.
@@ -313,11 +475,26 @@ def site_cover(
         (np.ones(len(site_of)), (site_of, np.arange(len(site_of)))), shape=(n_sites, m.shape[0])
     )
     sites = (pick @ sparse.csr_matrix((np.ones(m.nnz), m.indices, m.indptr), shape=m.shape)).tocsr()
-    limit = None if deadline is None else deadline - time.perf_counter()
-    h = _new_highs(limit)
-    _cover_rows(h, inst.n_points, inst.goal)
-    _add_columns(h, sites, np.ones(n_sites), 1.0)
     n = inst.n_points
+
+    def model() -> highspy.Highs:
+        # A fresh model for each solve: HiGHS' MILP on a model whose LP was solved
+        # before took 92 s on two_routes where a fresh one takes 11 s.
+        limit = None if deadline is None else deadline - time.perf_counter()
+        h = _new_highs(limit)
+        _cover_rows(h, n, inst.goal)
+        _add_columns(h, sites, np.ones(n_sites), 1.0)
+        return h
+
+    h = model()
+    lp_sites = np.zeros(0, dtype=np.int64)
+    lp_bound = 0
+    if (yield from _run(h, stop)) and h.getModelStatus() == highspy.HighsModelStatus.kOptimal:
+        lp_sites = np.flatnonzero(np.asarray(h.getSolution().col_value)[n:] > 1e-6)
+        lp_bound = math.ceil(float(h.getInfo().objective_function_value) * (1 - SAFETY) - 1e-6)
+    if not milp:
+        return SiteSolution(max(lp_bound, 0), np.zeros(0, dtype=np.int64), lp_sites)
+    h = model()
     h.changeColsIntegrality(
         n_sites,
         np.arange(n, n + n_sites, dtype=np.int32),
@@ -329,12 +506,12 @@ def site_cover(
         bound = round(float(info.objective_function_value))
     else:  # stopped early: the dual bound so far (none yet: 0)
         dual = float(info.mip_dual_bound)
-        bound = max(0, math.ceil(dual - 1e-6)) if math.isfinite(dual) else 0
+        bound = max(lp_bound, math.ceil(dual - 1e-6) if math.isfinite(dual) else 0)
     values = np.asarray(h.getSolution().col_value)
     chosen = np.zeros(0, dtype=np.int64)
     if len(values) == n + n_sites and info.primal_solution_status == 2:  # feasible
         chosen = np.flatnonzero(values[n:] > 0.5).astype(np.int64)
-    return SiteSolution(bound, chosen)
+    return SiteSolution(bound, chosen, lp_sites.astype(np.int64))
 
 
 def sensors_on_sites(
@@ -346,14 +523,19 @@ def sensors_on_sites(
     sensor_cost: float,
     deadline: float | None = None,
     stop: threading.Event | None = None,
+    cols: I64 | None = None,
 ) -> Generator[None, None, list[int]]:
     """The best plan on ``sites`` by the mast-aware MILP: every candidate at those
-    sites (x_c, binary, ``sensor_cost``), each site (y_s, binary, ``mast_cost``),
+    sites (or those of ``cols`` there; x_c, binary, ``sensor_cost``), each site (y_s,
+    binary, ``mast_cost``),
     ``x_c <= y_s``, and the cover rows. ``start`` (candidates at those sites that
     reach the goal) is HiGHS' first incumbent. At most ``MAX_NODES`` branch-and-bound
     nodes, so the answer does not depend on the machine's speed; stops at ``deadline``
     or ``stop`` with the best plan so far. Returns the chosen candidates."""
-    cols = np.flatnonzero(np.isin(site_of, sites)).astype(np.int64)
+    at_sites = np.isin(site_of, sites)
+    if cols is not None:
+        at_sites &= np.isin(np.arange(len(site_of)), cols)
+    cols = np.flatnonzero(at_sites).astype(np.int64)
     site_idx = np.searchsorted(sites, site_of[cols])
     n, n_cols, n_sites = inst.n_points, len(cols), len(sites)
     limit = None if deadline is None else deadline - time.perf_counter()

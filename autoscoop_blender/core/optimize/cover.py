@@ -32,10 +32,12 @@ I64 = NDArray[np.int64]
 
 @dataclass
 class CoverInstance:
-    """matrix: (C, N) CSR, 1 where candidate c covers point n; goal: points to cover."""
+    """matrix: (C, N) CSR, 1 where candidate c covers point n; goal: points to cover;
+    xy: (N, 2) where the points are, m (None if not known)."""
 
     matrix: sparse.csr_matrix
     goal: int
+    xy: NDArray[np.float64] | None = None
     _by_point: sparse.csc_matrix | None = field(default=None, repr=False)
 
     @property

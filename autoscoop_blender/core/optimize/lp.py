@@ -3,14 +3,17 @@
 On the problem's candidate set (``core/candidates.py``):
 
 1. a greedy plan gives the first columns and a first incumbent;
-2. the LP relaxation by column generation (``bound.cover_lp``) and, in a second
-   thread, the fewest masts by a MILP over positions (``bound.site_cover``) prove
-   the lower bounds: sensors, masts, and cost (the larger of mast_cost x masts +
-   sensor_cost x sensors and the mast-aware LP's bound);
-3. still in the second thread, a plan on the fewest masts' positions: greedy per
-   cost (a new mast costs extra), improved, masts closed while that is cheaper, and
-   the mast-aware MILP over the masts left (``bound.sensors_on_sites``, started from
-   that plan) when it is small;
+2. the LP relaxation by column generation (``bound.cover_lp``; in parts of at most
+   ``PART_POINTS`` target points, ``bound.split_cover_lp``) and, in a second
+   thread, the fewest masts by a MILP over positions (``bound.site_cover``; its LP
+   only on a target in parts) prove the lower bounds: sensors, masts, and cost (the
+   larger of mast_cost x masts + sensor_cost x sensors and the mast-aware LP's
+   bound);
+3. still in the second thread, plans on the positions of the fewest masts and on
+   those of its LP relaxation: greedy per cost (a new mast costs extra), improved,
+   masts closed while that is cheaper; then the mast-aware MILP over the cheaper
+   plan's masts (``bound.sensors_on_sites``, started from that plan) when it is
+   small;
 4. plans are built from the LP: the candidates at or above a threshold of their LP
    value, completed greedily from a pool (the restricted LP's columns and every
    candidate whose reduced cost is within ``POOL_REDUCED_COST``), then improved by
@@ -24,6 +27,7 @@ and plans from what the LP has so far.
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from collections.abc import Generator, Iterator
@@ -41,8 +45,10 @@ from .bound import (
     SiteSolution,
     cover_lp,
     mast_aware_bound,
+    parts_of,
     sensors_on_sites,
     site_cover,
+    split_cover_lp,
 )
 from .cover import Cover, CoverInstance, close_sites, complete, improve
 
@@ -54,8 +60,14 @@ POOL_REDUCED_COST = 0.2
 THRESHOLDS = (0.9, 0.7, 0.5, 0.3, 0.2)
 # The mast-aware MILP runs on at most this many candidates: two_routes' 13 masts
 # have 2,611 and HiGHS proves the optimum at its root in 18 s; on three tiles of
-# full_ground, 49 masts with about 10,000 took it 1,070 s.
+# full_ground, 49 masts with about 10,000 took it 1,070 s, while 37 masts with the
+# 100 candidates each that see the most (3,710) took 148 s and lowered the cost
+# from 239 to 215.
 MAX_MILP_CANDIDATES = 4000
+# Target points per part when the LP is solved in parts (``bound.split_cover_lp``):
+# two_routes (16,555 points) is solved whole, three tiles of full_ground (49,665) in
+# three parts.
+PART_POINTS = 20_000
 
 
 def instance(cands: CandidateSet, problem: Problem, covered: NDArray[np.bool_]) -> CoverInstance:
@@ -68,7 +80,7 @@ def instance(cands: CandidateSet, problem: Problem, covered: NDArray[np.bool_]) 
         matrix = matrix[:, np.flatnonzero(~covered)].tocsr()
     coverable = int(np.count_nonzero(np.bincount(matrix.indices, minlength=matrix.shape[1])))
     goal = min(problem.goal - int(np.count_nonzero(covered)), coverable)
-    return CoverInstance(matrix, goal)
+    return CoverInstance(matrix, goal, problem.grid.target_xy[~covered])
 
 
 def bound_scope(cands: CandidateSet, problem: Problem) -> str:
@@ -136,27 +148,59 @@ def masts_then_plan(
     deadline: float | None,
     stop: threading.Event | None,
     plan: bool,
-) -> Generator[None, None, tuple[SiteSolution, list[int] | None]]:
-    """The fewest masts and, when ``plan``, a plan on their positions (the best the
-    MILP found; its bound proves how few masts any plan needs): the cheapest by
-    greedy per cost, improved, then with masts closed while that is cheaper, and
-    finally the mast-aware MILP over the masts left when it has at most
-    ``MAX_MILP_CANDIDATES`` candidates. None when there is no plan."""
-    sites = yield from site_cover(inst, cands.position, len(cands.positions), deadline, stop)
-    if not plan or len(sites.sites) == 0 or (stop is not None and stop.is_set()):
+    milp: bool = True,
+) -> Generator[Any, None, tuple[SiteSolution, list[int] | None]]:
+    """The fewest masts and, when ``plan``, a plan on a few positions: on the sites
+    of the fewest masts' MILP and on those of its LP relaxation (more sites, each
+    chosen for what it sees), the cheapest by greedy per cost (a new mast costs
+    extra), improved, then with masts closed while that is cheaper; the cheaper of
+    the two, and then the mast-aware MILP over its masts when they have at most
+    ``MAX_MILP_CANDIDATES`` candidates. None when there is no plan. ``milp``: solve
+    the fewest masts' MILP (else its LP only)."""
+    sites = yield from site_cover(
+        inst, cands.position, len(cands.positions), deadline, stop, milp=milp
+    )
+    if not plan or (stop is not None and stop.is_set()):
         return sites, None
-    site_of = cands.position
-    pool = np.flatnonzero(np.isin(site_of, sites.sites)).astype(np.int64)
-    mc, sc = mast_aware_costs(problem, len(pool))
-    start = improve(complete(Cover(inst), pool, site_of, mc, sc), pool)
-    start = close_sites(start, site_of, mc, sc)
-    if start.slack < 0:
+    site_of, s = cands.position, problem.settings
+    starts: list[tuple[I64, Cover]] = []
+    for on in (sites.sites, sites.lp_sites):
+        if len(on) == 0 or any(np.array_equal(on, seen) for seen, _ in starts):
+            continue
+        pool = np.flatnonzero(np.isin(site_of, on)).astype(np.int64)
+        mc, sc = mast_aware_costs(problem, len(pool))
+        start = improve(complete(Cover(inst), pool, site_of, mc, sc), pool)
+        start = close_sites(start, site_of, mc, sc)
+        if start.slack >= 0:
+            starts.append((on, start))
+        yield None
+    if not starts:
         return sites, None
+    start = min(
+        (c for _, c in starts),
+        key=lambda c: plan_cost(cands, c.chosen, s.objective, s.mast_cost, s.sensor_cost)[0],
+    )
     used = np.unique(site_of[start.chosen])
-    if np.count_nonzero(np.isin(site_of, used)) > MAX_MILP_CANDIDATES:
-        return sites, start.chosen
-    chosen = yield from sensors_on_sites(inst, site_of, used, start.chosen, mc, sc, deadline, stop)
+    cols = milp_candidates(inst, site_of, used, start.chosen)
+    mc, sc = mast_aware_costs(problem, len(cols))
+    chosen = yield from sensors_on_sites(
+        inst, site_of, used, start.chosen, mc, sc, deadline, stop, cols=cols
+    )
     return sites, chosen
+
+
+def milp_candidates(inst: CoverInstance, site_of: I64, used: I64, start: list[int]) -> I64:
+    """The candidates of the mast-aware MILP on the sites ``used``: all of them when
+    they are at most ``MAX_MILP_CANDIDATES``, else at each site the ones that cover
+    the most points, as many as that limit allows, and the plan ``start``."""
+    cols = np.flatnonzero(np.isin(site_of, used)).astype(np.int64)
+    if len(cols) <= MAX_MILP_CANDIDATES:
+        return cols
+    per_site = max(1, MAX_MILP_CANDIDATES // len(used))
+    size = np.diff(inst.matrix.indptr)[cols]
+    order = cols[np.lexsort((-size, site_of[cols]))]  # by site, the largest first
+    rank = np.arange(len(order)) - np.searchsorted(site_of[order], site_of[order])
+    return np.union1d(order[rank < per_site], start).astype(np.int64)
 
 
 def prove_bound(
@@ -177,16 +221,19 @@ def prove_bound(
     greedy = complete(Cover(inst), np.arange(len(cands), dtype=np.int64))
     best = plan_cost(cands, greedy.chosen, s.objective, s.mast_cost, s.sensor_cost)[0]
     per_sensor = {"cost": s.sensor_cost, "sensors": 1.0}.get(s.objective)
-    lp_gen = cover_lp(
-        inst,
-        np.ones(len(cands)),
-        cands.position,
-        np.array(greedy.chosen),
-        deadline=deadline,
-        stop=stop,
-    )
+    n_parts = 1 if inst.xy is None else math.ceil(inst.n_points / PART_POINTS)
+    ones, initial = np.ones(len(cands)), np.array(greedy.chosen, dtype=np.int64)
+    if n_parts > 1:
+        part = parts_of(inst.xy, n_parts)
+        lp_gen = split_cover_lp(inst, ones, cands.position, initial, part, deadline=deadline, stop=stop)
+    else:
+        lp_gen = cover_lp(inst, ones, cands.position, initial, deadline=deadline, stop=stop)
+    # The fewest masts' MILP takes long on large targets (674 s on three tiles of
+    # full_ground, where the LP's 33.51 already proves its 34): there only its LP
+    # unless the masts are the objective.
+    milp = n_parts == 1 or s.objective == "masts"
     so_far = None
-    both = _both(lp_gen, masts_then_plan(problem, cands, inst, deadline, stop, plan))
+    both = _both(lp_gen, masts_then_plan(problem, cands, inst, deadline, stop, plan, milp))
     while True:
         try:
             step = next(both)
