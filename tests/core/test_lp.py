@@ -389,3 +389,20 @@ def test_milp_candidates_are_the_largest_per_site_within_the_limit(monkeypatch):
     assert cols.tolist() == [0, 1, 2, 3, 5]
     monkeypatch.setattr(lp_module, "MAX_MILP_CANDIDATES", 6)
     assert lp_module.milp_candidates(inst, site_of, np.array([1]), [3]).tolist() == [3, 4, 5]
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_lp_line_bounds_the_lp_at_every_goal(seed):
+    """The duals of the LP solved at one goal bound its value at every other goal
+    (slope g - intercept <= LP(g)), and meet it at the goal solved."""
+    rng = np.random.default_rng(300 + seed)
+    inst = random_instance(rng, n_cand=12, n_points=20)
+    ones, group = np.ones(12), np.arange(12)
+    lp = drain(cover_lp(inst, ones, group, np.arange(1), integral=False))
+    assert lp.slope * inst.goal - lp.intercept == pytest.approx(lp.value, abs=1e-4)
+    coverable = int(np.count_nonzero(np.bincount(inst.matrix.indices, minlength=20)))
+    for g in range(1, coverable + 1):
+        at_g = drain(
+            cover_lp(CoverInstance(inst.matrix, g), ones, group, np.arange(1), integral=False)
+        )
+        assert lp.slope * g - lp.intercept <= at_g.value + 1e-6
