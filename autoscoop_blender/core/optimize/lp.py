@@ -223,9 +223,11 @@ def prove_bound(
     per_sensor = {"cost": s.sensor_cost, "sensors": 1.0}.get(s.objective)
     n_parts = 1 if inst.xy is None else math.ceil(inst.n_points / PART_POINTS)
     ones, initial = np.ones(len(cands)), np.array(greedy.chosen, dtype=np.int64)
-    if n_parts > 1:
+    if inst.xy is not None and n_parts > 1:
         part = parts_of(inst.xy, n_parts)
-        lp_gen = split_cover_lp(inst, ones, cands.position, initial, part, deadline=deadline, stop=stop)
+        lp_gen = split_cover_lp(
+            inst, ones, cands.position, initial, part, deadline=deadline, stop=stop
+        )
     else:
         lp_gen = cover_lp(inst, ones, cands.position, initial, deadline=deadline, stop=stop)
     # The fewest masts' MILP takes long on large targets (674 s on three tiles of
