@@ -41,8 +41,8 @@ mast's site, ``x_c <= y_s``, and costs ``mast_cost`` per open site plus
 sites as fractionally as it picks candidates: on ``two_routes`` its value falls below
 50, far under the 70 of the masts and sensors bounds added), so its bound is taken
 cheaply from the sensors LP's duals (``mast_aware_bound``). As a MILP over the sites
-of the fewest masts (``sensors_on_sites``) it is exact and small: the fewest sensors
-(and cost) on those sites, started from a greedy plan on them.
+of a plan (``sensors_on_sites``) it is exact and small: the fewest sensors (and cost)
+on those sites, started from that plan.
 
 Solves run in a thread and the generators yield while they wait, so a caller (the
 Blender operator) stays responsive; closing the generator cancels the solve.
@@ -375,7 +375,6 @@ def split_cover_lp(
     matrix = inst.matrix
     n_parts = int(part.max()) + 1 if len(part) else 1
     sizes = np.maximum(np.diff(matrix.indptr), 1)
-    by_part = np.bincount(part, minlength=n_parts)
     coverable_all = np.bincount(matrix.indices, minlength=inst.n_points) > 0
     coverable = [int(np.count_nonzero(coverable_all[part == k])) for k in range(n_parts)]
     total = max(sum(coverable), 1)
@@ -388,7 +387,7 @@ def split_cover_lp(
         points = np.flatnonzero(part == k)
         sub = matrix[:, points].tocsr()
         rows = np.flatnonzero(np.diff(sub.indptr) > 0)
-        if len(rows) == 0 or by_part[k] == 0:
+        if len(rows) == 0:  # no point of the part, or none any candidate sees
             continue
         sub = sub[rows]
         share = cost[rows] * np.diff(sub.indptr) / sizes[rows]
@@ -511,7 +510,7 @@ def site_cover(
     chosen = np.zeros(0, dtype=np.int64)
     if len(values) == n + n_sites and info.primal_solution_status == 2:  # feasible
         chosen = np.flatnonzero(values[n:] > 0.5).astype(np.int64)
-    return SiteSolution(bound, chosen, lp_sites.astype(np.int64))
+    return SiteSolution(bound, chosen, lp_sites)
 
 
 def sensors_on_sites(
@@ -526,16 +525,14 @@ def sensors_on_sites(
     cols: I64 | None = None,
 ) -> Generator[None, None, list[int]]:
     """The best plan on ``sites`` by the mast-aware MILP: every candidate at those
-    sites (or those of ``cols`` there; x_c, binary, ``sensor_cost``), each site (y_s,
-    binary, ``mast_cost``),
-    ``x_c <= y_s``, and the cover rows. ``start`` (candidates at those sites that
+    sites, or those of ``cols`` there (x_c, binary, ``sensor_cost``), each site (y_s,
+    binary, ``mast_cost``), ``x_c <= y_s``, and the cover rows. ``start`` (candidates at those sites that
     reach the goal) is HiGHS' first incumbent. At most ``MAX_NODES`` branch-and-bound
     nodes, so the answer does not depend on the machine's speed; stops at ``deadline``
     or ``stop`` with the best plan so far. Returns the chosen candidates."""
-    at_sites = np.isin(site_of, sites)
-    if cols is not None:
-        at_sites &= np.isin(np.arange(len(site_of)), cols)
-    cols = np.flatnonzero(at_sites).astype(np.int64)
+    if cols is None:
+        cols = np.flatnonzero(np.isin(site_of, sites)).astype(np.int64)
+    cols = np.unique(cols[np.isin(site_of[cols], sites)])
     site_idx = np.searchsorted(sites, site_of[cols])
     n, n_cols, n_sites = inst.n_points, len(cols), len(sites)
     limit = None if deadline is None else deadline - time.perf_counter()

@@ -12,8 +12,8 @@ On the problem's candidate set (``core/candidates.py``):
 3. still in the second thread, plans on the positions of the fewest masts and on
    those of its LP relaxation: greedy per cost (a new mast costs extra), improved,
    masts closed while that is cheaper; then the mast-aware MILP over the cheaper
-   plan's masts (``bound.sensors_on_sites``, started from that plan) when it is
-   small;
+   plan's masts (``bound.sensors_on_sites``, started from that plan; on at most
+   ``MAX_MILP_CANDIDATES`` of their candidates, ``milp_candidates``);
 4. plans are built from the LP: the candidates at or above a threshold of their LP
    value, completed greedily from a pool (the restricted LP's columns and every
    candidate whose reduced cost is within ``POOL_REDUCED_COST``), then improved by
@@ -154,30 +154,31 @@ def masts_then_plan(
     of the fewest masts' MILP and on those of its LP relaxation (more sites, each
     chosen for what it sees), the cheapest by greedy per cost (a new mast costs
     extra), improved, then with masts closed while that is cheaper; the cheaper of
-    the two, and then the mast-aware MILP over its masts when they have at most
-    ``MAX_MILP_CANDIDATES`` candidates. None when there is no plan. ``milp``: solve
-    the fewest masts' MILP (else its LP only)."""
+    the two, and then the mast-aware MILP over its masts (``milp_candidates``). None
+    when there is no plan. ``milp``: solve the fewest masts' MILP (else its LP
+    only)."""
     sites = yield from site_cover(
         inst, cands.position, len(cands.positions), deadline, stop, milp=milp
     )
     if not plan or (stop is not None and stop.is_set()):
         return sites, None
     site_of, s = cands.position, problem.settings
-    starts: list[tuple[I64, Cover]] = []
-    for on in (sites.sites, sites.lp_sites):
-        if len(on) == 0 or any(np.array_equal(on, seen) for seen, _ in starts):
-            continue
+    site_sets = [on for on in (sites.sites, sites.lp_sites) if len(on)]
+    if len(site_sets) == 2 and np.array_equal(site_sets[0], site_sets[1]):
+        site_sets.pop()
+    starts: list[Cover] = []
+    for on in site_sets:
         pool = np.flatnonzero(np.isin(site_of, on)).astype(np.int64)
         mc, sc = mast_aware_costs(problem, len(pool))
         start = improve(complete(Cover(inst), pool, site_of, mc, sc), pool)
         start = close_sites(start, site_of, mc, sc)
         if start.slack >= 0:
-            starts.append((on, start))
+            starts.append(start)
         yield None
     if not starts:
         return sites, None
     start = min(
-        (c for _, c in starts),
+        starts,
         key=lambda c: plan_cost(cands, c.chosen, s.objective, s.mast_cost, s.sensor_cost)[0],
     )
     used = np.unique(site_of[start.chosen])
