@@ -1,44 +1,84 @@
 #!/usr/bin/env bash
-# AutoSCOOP developer entry: sets up .venv (Python 3.11, pinned requirements) once,
-# then runs the job asked for.
+# AutoSCOOP developer entry: sets up .venv (Python 3.11, bpy 5.0.1, pinned requirements.txt)
+# once, then runs the job asked for.
 #   ./dev.sh demo   the main job (optimize the bundled sample scene), results in out/
-#   ./dev.sh test   the test suite (fails when no test ran)
+#   ./dev.sh test   the test suite on bpy 5.0.1 / Python 3.11, then the extension, core and
+#                   packaging tests on bpy 5.2.3 / Python 3.13 in .venv-py313 (skipped, with
+#                   a message, when no Python 3.13 is found; PYTHON313= names one).
+#                   Extra arguments go to the first pytest run, and then it alone runs.
 set -euo pipefail
 cd "$(dirname "$0")"
 
 PY=${PYTHON:-python3.11}
-VENV=.venv
-STAMP="$VENV/.requirements-$(sha256sum requirements.txt | cut -c1-16)"
 
+# setup VENV PYTHON REQUIREMENTS: create VENV with PYTHON and install REQUIREMENTS, once
+# per content of the requirement files.
 setup() {
-    if [ ! -x "$VENV/bin/python" ]; then
-        "$PY" -m venv "$VENV"
+    local venv=$1 py=$2 req=$3
+    local stamp
+    stamp="$venv/.requirements-$(cat "$req" requirements-bundled.txt | sha256sum | cut -c1-16)"
+    if [ ! -x "$venv/bin/python" ]; then
+        "$py" -m venv "$venv"
     fi
-    if [ ! -f "$STAMP" ]; then
-        "$VENV/bin/python" -m pip install --disable-pip-version-check -q -r requirements.txt
-        rm -f "$VENV"/.requirements-*
-        touch "$STAMP"
+    if [ ! -f "$stamp" ]; then
+        "$venv/bin/python" -m pip install --disable-pip-version-check -q -r "$req"
+        rm -f "$venv"/.requirements-*
+        touch "$stamp"
     fi
+}
+
+# A Python 3.13: $PYTHON313, python3.13 on the PATH, or pyenv's newest 3.13.
+find_python313() {
+    if [ -n "${PYTHON313:-}" ]; then
+        echo "$PYTHON313"
+    elif python3.13 -c "" 2>/dev/null; then
+        command -v python3.13
+    elif command -v pyenv >/dev/null; then
+        local v
+        v=$(pyenv versions --bare 2>/dev/null | grep -E '^3\.13(\.[0-9]+)?$' | tail -1)
+        [ -n "$v" ] && PYENV_VERSION=$v pyenv which python3.13 2>/dev/null
+    fi
+}
+
+# run_pytest VENV ARGS...: pytest in VENV; "no tests ran" (exit 5) is a failure.
+run_pytest() {
+    local venv=$1
+    shift
+    set +e
+    "$venv/bin/python" -m pytest "$@"
+    local code=$?
+    set -e
+    if [ "$code" -eq 5 ]; then
+        echo "error: pytest ran no tests" >&2
+        return 1
+    fi
+    return "$code"
 }
 
 case "${1:-}" in
     demo)
-        setup
+        setup .venv "$PY" requirements.txt
         shift
-        exec "$VENV/bin/python" -m headless optimize "$@"
+        exec .venv/bin/python -m headless optimize "$@"
         ;;
     test)
-        setup
+        setup .venv "$PY" requirements.txt
         shift
-        set +e
-        "$VENV/bin/python" -m pytest "$@"
-        code=$?
-        set -e
-        if [ "$code" -eq 5 ]; then
-            echo "error: pytest ran no tests" >&2
-            exit 1
+        first=0
+        run_pytest .venv "$@" || first=$?
+        second=0
+        if [ "$#" -gt 0 ]; then
+            echo "== bpy 5.2.3 on Python 3.13 not run: arguments given (run ./dev.sh test alone)"
+        elif py313=$(find_python313) && [ -n "$py313" ]; then
+            echo "== bpy 5.2.3 on Python 3.13 ($py313): extension, core and packaging tests"
+            setup .venv-py313 "$py313" requirements-py313.txt
+            # mypy runs in the first environment only (test_types).
+            run_pytest .venv-py313 -q tests/blender/test_extension.py tests/core \
+                tests/packaging --ignore=tests/core/test_types.py || second=$?
+        else
+            echo "== SKIPPED bpy 5.2.3 on Python 3.13: no python3.13 found (set PYTHON313=)"
         fi
-        exit "$code"
+        [ "$first" -eq 0 ] && [ "$second" -eq 0 ]
         ;;
     *)
         echo "usage: ./dev.sh demo|test [extra arguments]" >&2

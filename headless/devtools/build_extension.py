@@ -1,6 +1,6 @@
 """Build the AutoSCOOP extension zips, one per platform, without a Blender binary.
 
-``python -m headless.build_extension [--out-dir DIR] [--platform P ...]``
+``python -m headless build [--out-dir DIR] [--platform P ...]``
 
 Why it works this way:
 
@@ -19,32 +19,34 @@ Why it works this way:
   listed file that is missing, and a build of some platforms (the test builds
   ``linux-x64`` only) must list only those platforms' wheels and set ``platforms`` to
   them anyway (``--split-platforms`` builds every platform the manifest names). The
-  exact filenames are an output of pip for (pin, platform tag); the pins live in one
-  place, ``requirements.txt``, so bumping one needs no manifest edit.
-* Bundled: scipy and shapely at the versions pinned in ``requirements.txt``. Not numpy:
-  Blender ships it and ``bpy`` depends on it, and a second copy would shadow Blender's.
-  Only ``cp311`` wheels: ``bpy`` 5.0.1 is Python 3.11, and Blender 5.1 moves to
-  Python 3.13, so the root manifest says ``blender_version_max = "5.1.0"``.
-* Platform tags: pip expands one ``--platform`` tag to the older compatible ones
-  (``macosx_14_0_arm64`` also accepts ``macosx_11_0_arm64``; ``manylinux_2_28_x86_64``
-  accepts ``manylinux_2_24`` and ``manylinux2014``), so one tag per platform resolves
-  both packages. scipy 1.17.1 has no macOS arm64 wheel below ``macosx_14_0`` and no
-  Linux wheel below ``manylinux_2_27``; shapely 2.2.0's are ``macosx_11_0`` and
-  ``manylinux_2_24``. The wheels as of this writing::
-
-      linux-x64    scipy-1.17.1-cp311-cp311-manylinux_2_27_x86_64.manylinux_2_28_x86_64.whl
-                   shapely-2.2.0-cp311-cp311-manylinux_2_24_x86_64.manylinux_2_28_x86_64.whl
-      windows-x64  scipy-1.17.1-cp311-cp311-win_amd64.whl
-                   shapely-2.2.0-cp311-cp311-win_amd64.whl
-      macos-arm64  scipy-1.17.1-cp311-cp311-macosx_14_0_arm64.whl
-                   shapely-2.2.0-cp311-cp311-macosx_11_0_arm64.whl
-
+  exact filenames are an output of pip for (pin, Python, platform tags); the pins live
+  in one place, ``requirements-bundled.txt``, so bumping one needs no manifest edit.
+* Bundled: everything in ``requirements-bundled.txt`` (scipy, shapely, highspy,
+  matplotlib and what matplotlib needs). Not numpy: Blender ships it and ``bpy``
+  depends on it, and a second copy would shadow Blender's.
+* Two Pythons: Blender 4.2 LTS to 5.0 run Python 3.11, Blender 5.1 and 5.2 run Python
+  3.13, so each zip carries ``cp311`` and ``cp313`` wheels and Blender's installer
+  unpacks the ones its Python takes. Except ``macos-x64``: Blender 4.5 LTS is the last
+  release built for Intel Macs, so that zip carries ``cp311`` only (a ``cp313`` set
+  would add 35 MB no Blender can load). Pure-Python wheels (``py3-none-any``) serve
+  both Pythons and are stored once. fonttools is taken as its pure wheel on every
+  platform: its compiled parts only speed up font subsetting, which a PNG never does,
+  and the pure wheel is 1.2 MB against 5.4 MB per Python on Linux.
+* Platform tags: pip matches the ``--platform`` tags given, and for macOS the older
+  versions of the one given, but not older manylinux ones, so Linux passes three
+  (``manylinux_2_28``, ``manylinux_2_17``, ``manylinux2014``; matplotlib's Linux wheels
+  are ``manylinux_2_17``, scipy's ``manylinux_2_27``). scipy 1.17.1 has no macOS wheel
+  below ``macosx_14_0``.
+* ``windows-arm64`` (Blender 4.4+) is known but not built by default: highspy 1.15.1
+  and matplotlib 3.10.3 publish no ``win_arm64`` wheels, and ``--platform
+  windows-arm64`` fails naming the first missing one.
 * Wheels are downloaded once into a cache (default ``build/wheels/``, git-ignored) and
   reused while the file is there and is a readable zip. Downloads land in a temporary
   folder first and are moved in, so an interrupted download never looks cached.
 * A platform whose wheels are missing still builds, silently, without them; so every
-  zip is opened afterwards and must hold exactly one scipy and one shapely wheel for
-  its platform and no numpy. Any failure raises ``BuildError`` with a one-line message.
+  zip is opened afterwards and must hold, for each of its Pythons, exactly one wheel of
+  every bundled package that this Python and platform can load, and no numpy. Any
+  failure raises ``BuildError`` with a one-line message.
 * Re-running replaces the zips: the expected zips are deleted before the build, so a
   failed build never leaves an old zip that looks new.
 """
@@ -68,24 +70,33 @@ from headless.paths import REPO
 
 SOURCE = REPO / "autoscoop_blender"
 MANIFEST = REPO / "blender_manifest.toml"
-REQUIREMENTS = REPO / "requirements.txt"
+REQUIREMENTS = REPO / "requirements-bundled.txt"
 DEFAULT_WHEEL_CACHE = REPO / "build" / "wheels"
 
-PLATFORMS: dict[str, str] = {
-    "linux-x64": "manylinux_2_28_x86_64",
-    "windows-x64": "win_amd64",
-    "macos-arm64": "macosx_14_0_arm64",
+PLATFORMS: dict[str, tuple[str, ...]] = {
+    "linux-x64": ("manylinux_2_28_x86_64", "manylinux_2_17_x86_64", "manylinux2014_x86_64"),
+    "windows-x64": ("win_amd64",),
+    "macos-arm64": ("macosx_14_0_arm64",),
+    "macos-x64": ("macosx_14_0_x86_64",),
+    "windows-arm64": ("win_arm64",),
 }
-"""Blender platform -> the pip ``--platform`` tag that finds every bundled wheel."""
+"""Blender platform -> the pip ``--platform`` tags that find every bundled wheel."""
 
-BUNDLED: tuple[str, ...] = ("scipy", "shapely", "highspy")
-"""Packages shipped as wheels inside the zips (versions from ``requirements.txt``)."""
+DEFAULT_PLATFORMS: tuple[str, ...] = ("linux-x64", "windows-x64", "macos-arm64", "macos-x64")
+"""Built unless asked otherwise (``windows-arm64`` lacks wheels, see the docstring)."""
+
+PYTHONS: dict[str, str] = {"cp311": "3.11", "cp313": "3.13"}
+"""Python tag -> version: Blender 4.2-5.0 run 3.11, Blender 5.1-5.2 run 3.13."""
+
+PLATFORM_PYTHONS: dict[str, tuple[str, ...]] = {"macos-x64": ("cp311",)}
+"""Platforms whose Blender releases run fewer Pythons than ``PYTHONS`` (Intel Macs end
+with Blender 4.5 LTS)."""
+
+PURE_ONLY: tuple[str, ...] = ("fonttools",)
+"""Packages taken as their pure-Python wheel everywhere (see the docstring)."""
 
 NOT_BUNDLED: tuple[str, ...] = ("numpy",)
 """Packages Blender itself provides; a zip holding one of them is an error."""
-
-PYTHON_VERSION = "3.11"
-PYTHON_TAG = "cp311"
 
 Progress = Callable[[str], None]
 
@@ -97,37 +108,52 @@ class BuildError(AutoscoopError):
 # --- wheels -----------------------------------------------------------------------------
 
 
+def normalized(name: str) -> str:
+    """A distribution name as wheel filenames spell it (``python-dateutil`` -> ``python_dateutil``)."""
+    return re.sub(r"[-_.]+", "_", name).lower()
+
+
 def pinned_versions(requirements: Path = REQUIREMENTS) -> dict[str, str]:
-    """The ``NAME==VERSION`` pins of the bundled packages in ``requirements.txt``."""
+    """{normalized name: version} of every ``NAME==VERSION`` pin in ``requirements``."""
     pins: dict[str, str] = {}
     for line in requirements.read_text().splitlines():
         m = re.fullmatch(r"\s*([A-Za-z0-9_.-]+)\s*==\s*([^\s;#]+).*", line)
         if m:
-            pins[m.group(1).lower()] = m.group(2)
-    missing = [name for name in BUNDLED if name not in pins]
-    if missing:
-        raise BuildError(f"{requirements}: no '==' pin for {', '.join(missing)}")
-    return {name: pins[name] for name in BUNDLED}
+            pins[normalized(m.group(1))] = m.group(2)
+    if not pins:
+        raise BuildError(f"{requirements}: no '==' pins")
+    return pins
 
 
-def wheel_fields(filename: str) -> tuple[str, str, str, tuple[str, ...]]:
-    """(distribution, version, python tag, platform tags) of a wheel filename."""
+def pythons_of(platform: str) -> tuple[str, ...]:
+    """The Python tags a platform's zip carries wheels for."""
+    return PLATFORM_PYTHONS.get(platform, tuple(PYTHONS))
+
+
+def wheel_fields(filename: str) -> tuple[str, str, tuple[str, ...], tuple[str, ...]]:
+    """(normalized distribution, version, python tags, platform tags) of a wheel filename."""
     parts = Path(filename).name.removesuffix(".whl").split("-")
     if not filename.endswith(".whl") or len(parts) not in (5, 6):
         raise BuildError(f"{filename}: not a wheel filename")
-    return parts[0].lower(), parts[1], parts[-3], tuple(parts[-1].split("."))
+    return normalized(parts[0]), parts[1], tuple(parts[-3].split(".")), tuple(parts[-1].split("."))
 
 
 def _platform_of_tag(tag: str) -> set[str]:
-    """Blender platforms a single wheel platform tag runs on (only the ones we build)."""
+    """Blender platforms a single wheel platform tag runs on (only the ones we know)."""
     if tag == "any":
         return set(PLATFORMS)
     if tag.startswith("manylinux") and tag.endswith("_x86_64"):
         return {"linux-x64"}
     if tag == "win_amd64":
         return {"windows-x64"}
-    if tag.startswith("macosx_") and tag.endswith(("_arm64", "_universal2")):
+    if tag == "win_arm64":
+        return {"windows-arm64"}
+    if tag.startswith("macosx_") and tag.endswith("_universal2"):
+        return {"macos-arm64", "macos-x64"}
+    if tag.startswith("macosx_") and tag.endswith("_arm64"):
         return {"macos-arm64"}
+    if tag.startswith("macosx_") and tag.endswith("_x86_64"):
+        return {"macos-x64"}
     return set()
 
 
@@ -136,13 +162,21 @@ def wheel_platforms(filename: str) -> set[str]:
     return set().union(*(_platform_of_tag(t) for t in wheel_fields(filename)[3]))
 
 
-def _is_wanted(path: Path, name: str, version: str, platform: str) -> bool:
-    dist, ver, python_tag, _ = wheel_fields(path.name)
+def loads_on(filename: str, python: str, platform: str) -> bool:
+    """Whether Blender's Python ``python`` (``cp311``) on ``platform`` can load the wheel."""
+    _, _, python_tags, _ = wheel_fields(filename)
+    fits_python = python in python_tags or any(t in ("py3", "py2") for t in python_tags)
+    return fits_python and platform in wheel_platforms(filename)
+
+
+def _is_wanted(path: Path, name: str, version: str, python: str, platform: str) -> bool:
+    dist, ver, _, platform_tags = wheel_fields(path.name)
+    pure = platform_tags == ("any",)
     return (
         dist == name
         and ver == version
-        and PYTHON_TAG in python_tag.split(".")
-        and platform in wheel_platforms(path.name)
+        and loads_on(path.name, python, platform)
+        and (pure or name not in PURE_ONLY)
     )
 
 
@@ -154,15 +188,15 @@ def _is_readable_zip(path: Path) -> bool:
         return False
 
 
-def cached_wheel(cache: Path, name: str, version: str, platform: str) -> Path | None:
-    """The cached wheel of ``name==version`` for ``platform``, if a readable one is there."""
-    for path in sorted(cache.glob(f"{name}-{version}-*.whl")):
-        if _is_wanted(path, name, version, platform) and _is_readable_zip(path):
+def cached_wheel(cache: Path, name: str, version: str, python: str, platform: str) -> Path | None:
+    """The cached wheel of ``name==version`` for ``python`` on ``platform``, if readable."""
+    for path in sorted(cache.glob("*.whl")):
+        if _is_wanted(path, name, version, python, platform) and _is_readable_zip(path):
             return path
     return None
 
 
-def _pip_download(name: str, version: str, tag: str, dest: Path) -> None:
+def _pip_download(name: str, version: str, python: str, tags: Sequence[str], dest: Path) -> None:
     cmd = [
         sys.executable,
         "-m",
@@ -171,8 +205,8 @@ def _pip_download(name: str, version: str, tag: str, dest: Path) -> None:
         f"{name}=={version}",
         "--no-deps",
         "--only-binary=:all:",
-        f"--python-version={PYTHON_VERSION}",
-        f"--platform={tag}",
+        f"--python-version={PYTHONS[python]}",
+        *(f"--platform={tag}" for tag in tags),
         "--dest",
         str(dest),
         "--quiet",
@@ -183,30 +217,35 @@ def _pip_download(name: str, version: str, tag: str, dest: Path) -> None:
         errors = [ln for ln in proc.stderr.splitlines() if ln.startswith("ERROR")]
         reason = (errors or proc.stderr.strip().splitlines() or ["no output"])[-1]
         reason = reason.removeprefix("ERROR: ")
-        raise BuildError(f"pip download {name}=={version} --platform={tag} failed: {reason}")
+        raise BuildError(f"pip download {name}=={version} for {python} {tags[0]} failed: {reason}")
 
 
-def fetch_wheel(name: str, version: str, platform: str, cache: Path) -> Path:
-    """The wheel of ``name==version`` for ``platform``, downloaded into ``cache`` if needed."""
-    if (hit := cached_wheel(cache, name, version, platform)) is not None:
+def fetch_wheel(name: str, version: str, python: str, platform: str, cache: Path) -> Path:
+    """The wheel of ``name==version`` for ``python`` on ``platform``, downloaded if needed."""
+    if (hit := cached_wheel(cache, name, version, python, platform)) is not None:
         return hit
     cache.mkdir(parents=True, exist_ok=True)
+    tags = ("any",) if name in PURE_ONLY else PLATFORMS[platform]
     with tempfile.TemporaryDirectory(dir=cache, prefix=".download-") as tmp:
-        _pip_download(name, version, PLATFORMS[platform], Path(tmp))
+        _pip_download(name, version, python, tags, Path(tmp))
         for path in Path(tmp).glob("*.whl"):
             path.replace(cache / path.name)
-    if (hit := cached_wheel(cache, name, version, platform)) is None:
-        raise BuildError(
-            f"pip download {name}=={version} found no {PYTHON_TAG} wheel for {platform}"
-        )
+    if (hit := cached_wheel(cache, name, version, python, platform)) is None:
+        raise BuildError(f"pip download {name}=={version} found no {python} wheel for {platform}")
     return hit
 
 
 def fetch_wheels(platforms: Sequence[str], cache: Path) -> dict[str, list[Path]]:
-    """Every bundled wheel for each platform: {platform: [scipy wheel, shapely wheel]}."""
+    """Every bundled wheel for each platform, each Python of it, once per file."""
     pins = pinned_versions()
     return {
-        p: [fetch_wheel(name, version, p, cache) for name, version in pins.items()]
+        p: list(
+            dict.fromkeys(
+                fetch_wheel(name, version, python, p, cache)
+                for python in pythons_of(p)
+                for name, version in pins.items()
+            )
+        )
         for p in platforms
     }
 
@@ -238,11 +277,10 @@ def stage(dest: Path, platforms: Sequence[str], wheels: dict[str, list[Path]]) -
     folder = dest / "autoscoop"
     shutil.copytree(SOURCE, folder, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
     (folder / "wheels").mkdir()
-    names: list[str] = []
-    for p in platforms:
-        for wheel in wheels[p]:
-            shutil.copy2(wheel, folder / "wheels" / wheel.name)
-            names.append(f"./wheels/{wheel.name}")
+    files = list(dict.fromkeys(w for p in platforms for w in wheels[p]))  # pure ones once
+    for wheel in files:
+        shutil.copy2(wheel, folder / "wheels" / wheel.name)
+    names = [f"./wheels/{wheel.name}" for wheel in files]
     manifest = staged_manifest(MANIFEST.read_text(), platforms, names)
     (folder / "blender_manifest.toml").write_text(manifest)
     return folder
@@ -299,18 +337,23 @@ def zip_wheels(path: Path) -> list[str]:
 
 
 def check_zip(path: Path, platform: str) -> list[str]:
-    """Raise unless the zip holds one wheel per bundled package for ``platform``, no numpy."""
+    """Raise unless the zip holds, for each of the platform's Pythons, one loadable wheel
+    of every bundled package and nothing else; and no numpy. Returns the wheel names."""
     wheels = zip_wheels(path)
     for name in NOT_BUNDLED:
         if any(wheel_fields(w)[0] == name for w in wheels):
             raise BuildError(f"{path.name}: bundles {name}, which Blender provides")
+    pythons = pythons_of(platform)
     for w in wheels:
-        if platform not in wheel_platforms(w) or PYTHON_TAG not in wheel_fields(w)[2]:
-            raise BuildError(f"{path.name}: wheel {w} is not {PYTHON_TAG} for {platform}")
-    for name in BUNDLED:
-        count = sum(wheel_fields(w)[0] == name for w in wheels)
-        if count != 1:
-            raise BuildError(f"{path.name}: {count} {name} wheels for {platform}, expected 1")
+        if not any(loads_on(w, python, platform) for python in pythons):
+            raise BuildError(f"{path.name}: wheel {w} loads on none of {', '.join(pythons)}")
+    for python in pythons:
+        for name in pinned_versions():
+            count = sum(wheel_fields(w)[0] == name and loads_on(w, python, platform) for w in wheels)
+            if count != 1:
+                raise BuildError(
+                    f"{path.name}: {count} {name} wheels for {python} on {platform}, expected 1"
+                )
     return wheels
 
 
@@ -325,7 +368,7 @@ def _platform_list(platforms: Sequence[str]) -> list[str]:
 
 def build(
     out_dir: Path = Path("dist"),
-    platforms: Sequence[str] = tuple(PLATFORMS),
+    platforms: Sequence[str] = DEFAULT_PLATFORMS,
     wheel_cache: Path | None = None,
     *,
     progress: Progress | None = None,
@@ -375,14 +418,14 @@ def main(argv: list[str] | None = None) -> int:
         "--platform",
         action="append",
         choices=tuple(PLATFORMS),
-        help="build only this platform (repeatable; default all)",
+        help=f"build only this platform (repeatable; default {', '.join(DEFAULT_PLATFORMS)})",
     )
     parser.add_argument("--wheel-cache", type=Path, help=f"default {DEFAULT_WHEEL_CACHE}")
     args = parser.parse_args(argv)
     try:
         zips = build(
             args.out_dir,
-            args.platform or tuple(PLATFORMS),
+            args.platform or DEFAULT_PLATFORMS,
             args.wheel_cache,
             progress=lambda line: print(line, flush=True),
         )

@@ -29,6 +29,13 @@ log = logging.getLogger(__name__)
 F64 = NDArray[np.float64]
 
 
+def _twice_areas(p: F64) -> F64:
+    """(T,) twice the area of each triangle of ``p`` (T, 3, 2), m^2. Written out: numpy 2
+    no longer takes 2-vectors in ``np.cross``."""
+    u, v = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    return np.abs(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0])
+
+
 @dataclass(frozen=True)
 class Triangulation:
     """Delaunay triangulation of points (P, 2); ``None`` parts when degenerate."""
@@ -48,14 +55,13 @@ class Triangulation:
         a = np.linalg.norm(p[:, 1] - p[:, 2], axis=1)
         b = np.linalg.norm(p[:, 0] - p[:, 2], axis=1)
         c = np.linalg.norm(p[:, 0] - p[:, 1], axis=1)
-        area2 = np.abs(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]))
+        area2 = _twice_areas(p)
         with np.errstate(divide="ignore", invalid="ignore"):
             return np.where(area2 > 0, a * b * c / (2.0 * area2), np.inf)
 
     def areas(self) -> F64:
         """(T,) triangle areas, m^2."""
-        p = self.points[self.simplices]
-        return 0.5 * np.abs(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]))
+        return 0.5 * _twice_areas(self.points[self.simplices])
 
     def locate_kept(self, xy: F64, keep: NDArray[np.bool_], cell: float) -> NDArray[np.int_]:
         """(K,) index of the kept triangle holding each query point, -1 for none.
