@@ -5,6 +5,15 @@ settings); every further line is a record from ``core.run.Run``'s ``on_fixed``. 
 interrupted by Ctrl-C or a crash keeps every sensor fixed so far, and ``--resume``
 reads them back to go on exactly where it stopped (the records carry the random
 generator's state).
+
+Every line is ``{"sha": <16 hex>, "data": <header or record>}``, the hash taken over
+``data`` as canonical JSON, so one damaged line is found, named, and never taken for
+data. A crash can only cut the *last* line short (it has no newline yet); that line is
+dropped on resume. Any other damage stops the resume with an error naming the line and
+leaves the file exactly as it was; ``--resume --repair`` keeps the records before the
+first damaged line (the whole file is kept beside it as ``checkpoint.jsonl.damaged``).
+The file is created or replaced only when the first sensor is fixed, so a command that
+fails before that (bad input) never touches an earlier checkpoint.
 """
 
 from __future__ import annotations
@@ -60,6 +69,56 @@ def _settings(stored: Any) -> OptimizeSettings | None:
         return None
 
 
+RECORD_NUMBERS = ("x", "y", "pitch_deg", "yaw_deg", "fitness")
+RECORD_COUNTS = ("n", "epochs", "evaluations")
+
+
+def _digest(data: Any) -> str:
+    text = json.dumps(data, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+
+
+def encode_line(data: Any) -> str:
+    """One checkpoint line (with its newline) holding ``data``; ValueError for NaN or inf."""
+    return json.dumps({"sha": _digest(data), "data": data}, allow_nan=False) + "\n"
+
+
+def decode_line(line: bytes) -> Any:
+    """The data of one line; ValueError saying what is wrong with it."""
+    try:
+        doc = json.loads(line.decode("utf-8"))
+    except UnicodeDecodeError:
+        raise ValueError("not UTF-8 text") from None
+    except json.JSONDecodeError as e:
+        raise ValueError(f"not JSON ({e.msg})") from None
+    if not isinstance(doc, dict) or set(doc) != {"sha", "data"}:
+        raise ValueError("not a checkpoint line (no checksum: made by an older AutoSCOOP?)")
+    try:
+        ok = _digest(doc["data"]) == doc["sha"]
+    except ValueError:
+        ok = False
+    if not ok:
+        raise ValueError("checksum does not match: the line was changed or damaged")
+    return doc["data"]
+
+
+def check_record(record: Any, n: int) -> None:
+    """ValueError unless ``record`` is the ``n``-th fixed sensor's record."""
+    if not isinstance(record, dict):
+        raise ValueError("a record must be a JSON object")
+    for key in RECORD_NUMBERS + RECORD_COUNTS:
+        value = record.get(key)
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ValueError(f"record {key} must be a number, got {value!r}")
+        if not abs(value) < 1e15:  # NaN, inf and ints too big for a float fail here too
+            raise ValueError(f"record {key} must be finite and below 1e15, got {value!r:.20}")
+    for key in RECORD_COUNTS:
+        if not isinstance(record[key], int) or record[key] < 0:
+            raise ValueError(f"record {key} must be a count, got {record[key]!r}")
+    if record["n"] != n:
+        raise ValueError(f"record of sensor {record['n']} where sensor {n} belongs")
+
+
 class Checkpoint:
     """Append-only JSON-lines file in the output folder; ``header`` as made by
     ``checkpoint_header``."""
@@ -67,22 +126,51 @@ class Checkpoint:
     def __init__(self, out_dir: Path, header: dict[str, Any]) -> None:
         self.path = out_dir / NAME
         self.header = header
+        self._started = False
+        self._valid_bytes: int | None = None  # resume: where the complete lines end
 
     def start(self) -> None:
         """Begin a fresh checkpoint (any old one is replaced)."""
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.path.write_text(json.dumps(self.header) + "\n", encoding="utf-8")
+        self.path.write_text(encode_line(self.header), encoding="utf-8")
+        self._started = True
 
-    def resume(self) -> list[dict[str, Any]]:
-        """The records of an earlier run with the same header; InputError otherwise."""
+    def resume(self, repair: bool = False) -> list[dict[str, Any]]:
+        """The records of an earlier run with the same header; InputError otherwise.
+
+        Reads only: the file changes when the next record is appended (a cut-short last
+        line is dropped then), or here with ``repair`` (see the module docstring).
+        """
         if not self.path.is_file():
             raise InputError(f"{self.path}: no checkpoint to resume from")
-        parsed = []
-        for line in self.path.read_text(encoding="utf-8").splitlines():
+        raw = self.path.read_bytes()
+        lines = raw.splitlines(keepends=True)
+        if lines and not lines[-1].endswith(b"\n"):
+            lines.pop()  # cut short by a crash while it was written
+        parsed: list[Any] = []
+        damaged = False
+        for number, line in enumerate(lines, start=1):
             try:
-                parsed.append(json.loads(line))
-            except json.JSONDecodeError:
-                break  # a crash can cut the last line short: keep the complete ones
+                data = decode_line(line)
+                if number == 1 and not isinstance(data, dict):
+                    raise ValueError("the header must be a JSON object")
+                if number > 1:
+                    check_record(data, number - 1)
+            except ValueError as e:
+                if not repair:
+                    kept = max(number - 2, 0)
+                    raise InputError(
+                        f"{self.path}: line {number} is damaged: {e}; the file is left as it "
+                        f"was; --resume --repair keeps the {kept} record(s) before it"
+                    ) from None
+                if number == 1:
+                    raise InputError(
+                        f"{self.path}: line 1 (the header) is damaged: {e}; nothing to keep, "
+                        "run without --resume"
+                    ) from None
+                damaged = True
+                break
+            parsed.append(data)
         if not parsed:
             raise InputError(f"{self.path}: empty checkpoint")
         header, records = parsed[0], parsed[1:]
@@ -98,14 +186,29 @@ class Checkpoint:
                 raise InputError(
                     f"{self.path}: made with {what}; run without --resume to start again"
                 )
-        # Rewrite without any torn line, so appends follow complete records.
-        self.path.write_text(
-            "".join(json.dumps(r) + "\n" for r in [header, *records]), encoding="utf-8"
-        )
+        if damaged:
+            self._keep_prefix(raw, lines[: len(parsed)])
+        self.header = header
+        self._valid_bytes = sum(len(line) for line in lines[: len(parsed)])
+        self._started = True
         return records
 
+    def _keep_prefix(self, raw: bytes, lines: list[bytes]) -> None:
+        """Keep ``lines`` only, the whole file saved beside it first."""
+        damaged = self.path.with_name(NAME + ".damaged")
+        damaged.write_bytes(raw)
+        self.path.write_bytes(b"".join(lines))
+
     def append(self, record: dict[str, Any]) -> None:
-        with self.path.open("a", encoding="utf-8") as f:
-            f.write(json.dumps(record) + "\n")
+        """Add one fixed sensor's record (the file is started or trimmed first)."""
+        if not self._started:
+            self.start()
+        line = encode_line(record)
+        with self.path.open("r+b") as f:
+            if self._valid_bytes is not None:
+                f.truncate(self._valid_bytes)  # drop a line a crash cut short
+                self._valid_bytes = None
+            f.seek(0, os.SEEK_END)
+            f.write(line.encode("utf-8"))
             f.flush()
             os.fsync(f.fileno())

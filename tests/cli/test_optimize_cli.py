@@ -167,9 +167,10 @@ def test_checkpoint_from_before_a_setting_existed_resumes_as_its_default(tmp_pat
     }
     old_settings = OptimizeSettings().to_dict()
     del old_settings["optimizer"], old_settings["es"]["decay"]  # not settings back then
-    Checkpoint(tmp_path, dict(header, settings=old_settings)).start()
-    Checkpoint(tmp_path, header).append({"n": 1})
-    assert Checkpoint(tmp_path, header).resume() == [{"n": 1}]
+    record = {"n": 1, "x": 0.5, "y": 1.0, "pitch_deg": 20.0, "yaw_deg": 0.0, "fitness": 0.1,
+              "epochs": 2, "evaluations": 9}  # fmt: skip
+    Checkpoint(tmp_path, dict(header, settings=old_settings)).append(record)
+    assert Checkpoint(tmp_path, header).resume() == [record]
     # A run asking for another optimizer, or another decay, is not the one recorded.
     for other in (
         replace(OptimizeSettings(), optimizer="greedy"),
