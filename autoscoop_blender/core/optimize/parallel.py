@@ -14,6 +14,9 @@ sensors: each is sent only the sensors fixed since its last chunk.
 from __future__ import annotations
 
 import multiprocessing
+import multiprocessing.connection
+import os
+import threading
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass
@@ -48,8 +51,23 @@ class _Worker:
 _WORKER: _Worker | None = None
 
 
+def _die_with_parent() -> None:
+    """End this worker as soon as the process that started it is gone, even when it was
+    killed (SIGKILL runs no clean-up, and the executor would wait for work forever)."""
+    parent = multiprocessing.parent_process()
+    if parent is None:
+        return
+
+    def watch() -> None:
+        multiprocessing.connection.wait([parent.sentinel])
+        os._exit(1)
+
+    threading.Thread(target=watch, name="autoscoop-parent-watch", daemon=True).start()
+
+
 def _start(inputs: WorkerInputs, make_caster: Callable[[], RayCaster]) -> None:
     global _WORKER
+    _die_with_parent()
     caster = make_caster()
     grid = GroundGrid.from_arrays(inputs.grid, caster)
     evaluator = make_evaluator(inputs.settings, grid, caster, inputs.settings.cache)
