@@ -9,6 +9,8 @@ from pathlib import Path
 
 import pytest
 
+from autoscoop_blender.core.errors import InputError
+from headless.lock import OutDirLock
 from tests.cli.conftest import SAMPLES
 from tests.conftest import ROOT
 
@@ -71,3 +73,31 @@ def test_workers_die_with_a_killed_parent(tmp_path):
     finally:
         if main.poll() is None:
             main.kill()
+
+
+def test_a_second_run_into_a_locked_folder_is_refused(tmp_path):
+    with OutDirLock(tmp_path / "out"):
+        with pytest.raises(InputError, match=rf"another AutoSCOOP run \(process {os.getpid()}\)"):
+            with OutDirLock(tmp_path / "out"):
+                pass
+    with OutDirLock(tmp_path / "out") as again:  # released at the end of the first
+        assert again.stale_pid is None
+
+
+def test_the_lock_of_a_killed_run_is_taken_over(tmp_path):
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import sys, time; from headless.lock import OutDirLock\n"
+         "from pathlib import Path\nwith OutDirLock(Path(sys.argv[1])):\n"
+         "    print('locked', flush=True); time.sleep(60)", str(tmp_path)],
+        cwd=ROOT, stdout=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        assert holder.stdout.readline().strip() == "locked"
+        with pytest.raises(InputError, match=rf"process {holder.pid}\)"):
+            OutDirLock(tmp_path).__enter__()
+        holder.kill()
+        holder.wait(10)
+        with OutDirLock(tmp_path) as lock:
+            assert lock.stale_pid == holder.pid
+    finally:
+        holder.kill()
