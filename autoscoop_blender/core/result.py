@@ -10,6 +10,7 @@ written from it, and nothing after it casts a ray.
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -20,18 +21,22 @@ import shapely
 import shapely.affinity
 from numpy.typing import NDArray
 from scipy import ndimage
+from shapely.geometry import Polygon
 from shapely.geometry.base import BaseGeometry
 
 from .coverage.base import SensorCoverage, footprint_polygon, summarize
 from .coverage.reference import reference_footprint_m2
 from .geom.drape import drape
 from .geom.grid import GroundGrid
+from .geom.outline import occluder_outline
 from .model.scene import Area, SceneModel
 from .model.sensors import SensorModel
 from .optimize.base import PlanBound
 
 F64 = NDArray[np.float64]
 I32 = NDArray[np.int32]
+
+logger = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -88,7 +93,9 @@ class Result:
     uncovered: the connected uncovered patches (``uncovered_parts``). scene: the
     source file's name; origin: (3,) the local origin the core worked in; settings:
     the settings (an ``OptimizeSettings`` or ``CoverageSettings``); model: the run's
-    sensor model (None when each sensor brought its own).
+    sensor model (None when each sensor brought its own). occluder_outlines: the top
+    view of the occluders that stand up from the terrain (buildings, walls, trees;
+    ``geom.outline``), one Polygon per connected part in world XY, largest first.
     """
 
     sensors: tuple[SensorRecord, ...]
@@ -110,6 +117,7 @@ class Result:
     model: SensorModel | None = None
     target_polygon_m2: float = 0.0
     rays: dict[str, int] = field(default_factory=dict)
+    occluder_outlines: tuple[Polygon, ...] = ()
 
     @property
     def coverage_fraction(self) -> float:
@@ -198,6 +206,16 @@ def finish_layout(
                 sensors=tuple(s.n for s in members),
             )
         )
+    t_outline = time.perf_counter()
+    outlines = tuple(
+        shapely.affinity.translate(p, ox, oy) for p in occluder_outline(scene.vertices, scene.faces)
+    )
+    logger.debug(
+        "occluder outline: %d parts from %d triangles in %.3f s",
+        len(outlines),
+        len(scene.faces),
+        time.perf_counter() - t_outline,
+    )
     sight = how.sight_rays + sum(c.rays for c in coverages)
     drop = grid.drop_rays
     metrics = layout_metrics(
@@ -236,6 +254,7 @@ def finish_layout(
         model=how.model,
         target_polygon_m2=round(float(scene.target_union.area), 2),
         rays={"sight": sight, "drop": drop, "probe": extra_rays},
+        occluder_outlines=outlines,
     )
 
 

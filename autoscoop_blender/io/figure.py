@@ -1,458 +1,539 @@
-"""Top-view coverage map of a sensor layout as a PNG, in numpy and shapely only.
+"""coverage.png: a top-view map of a sensor layout that explains itself.
 
-The picture is the paper's Fig. 4 without the text: target area grey, sensor areas
-purple, every sensor footprint a translucent green layer (overlaps get darker), target
-points no sensor covers as warning-coloured cells, masts as dark-red discs, a frame and
-a scale bar. It has to run inside Blender too, which ships neither matplotlib nor PIL,
-so rasterizing and PNG encoding are done here by hand.
+Drawn with matplotlib's Agg renderer on a ``Figure`` of its own (no pyplot, so no GUI
+backend and no global figure state) under matplotlib's default style, whatever a
+user's matplotlibrc says; geometry goes in through ``shapely.plotting``. matplotlib
+is imported inside ``coverage_figure`` only: the add-on registers without it, and
+inside Blender it comes from the extension's bundled wheel.
 
-Frames and units
-----------------
-World: metres, X east, Y north (the ``Result``'s frame). Image: pixel rows top to
-bottom and columns left to right, north up, the same number of pixels per metre in x
-and y. In continuous pixel coordinates ``(col, row)`` pixel ``[r, c]`` covers
-``[c, c + 1) x [r, r + 1)``, so its centre is ``(c + 0.5, r + 0.5)``; a world point
-``(x, y)`` sits at ``col = (x - x_left) * scale``, ``row = (y_top - y) * scale``.
+What the map shows
+------------------
+Frame: world metres, x east, y north, equal scale, north up, labelled axes and a
+scale bar (m, or km from 1 km). The view is the box around the targets, sensor
+areas, footprints, masts and target points, grown by ``margin_m``; occluders
+reaching beyond it are cut off at the frame.
 
-Drawing order (later on top): background, target fill, sensor-area fill, footprint
-layers, footprint outlines, uncovered points, target and sensor-area outlines, masts,
-scale bar, frame. The area outlines go over the uncovered cells so the areas stay
-readable where the gaps reach their edge.
+Title: the scene's name; under it the plan in numbers: sensors and masts, coverage
+(percent of the target grid, and its m^2), with k > 1 the share covered k times,
+and for an optimization its objective with the proven lower bound and the gap, or
+"no lower bound"; then, in grey, how it was made: optimizer and coverage goal (or
+"evaluated layout"), sensor model, cost rule, target grid.
 
-Scale bar: bottom left, alternating black and white segments of 10 m (100 m when the
-bar is longer than 100 m, 1 km beyond 1 km); its length is the largest of 10, 20, 50,
-100, 200, ... m that is at most a quarter of the image width. There is no text, so
-the segments are what tells the reader the scale.
+Layers, bottom to top: target areas (pale sand, dark outline drawn again on top),
+sensor areas (light violet), sensor footprints (translucent blue, so overlaps come
+out darker), occluders (solid grey: buildings, walls, trees, ``Result.
+occluder_outlines``), target cells no sensor covers (orange; with k > 1 every
+target cell, coloured by how many sensors cover it, 0 .. k), the m^2 of the largest
+uncovered patches, masts (dark discs with their number as in sensors.csv). Blue and
+orange keep covered and uncovered apart for readers with red-green colour blindness
+too. The legend beside the map names every layer present, with counts.
+
+Size: ``width_px`` wide at 100 dpi; the map takes the left part at the view's
+aspect (at most 1.6 high per 1 wide), the legend a 3.5 in column on the right.
+
+The PNG carries no software, version or time stamp: the same result gives the same
+bytes (on the same matplotlib and fonts).
 """
 
 from __future__ import annotations
 
+import io
 import logging
 import math
-import struct
 import time
-import zlib
-from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import shapely
 from numpy.typing import NDArray
+from shapely.geometry import Polygon
 from shapely.geometry.base import BaseGeometry
 
 from ..core.result import Result
 
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
 logger = logging.getLogger(__name__)
 
-RGB = tuple[int, int, int]
-Canvas = NDArray[np.float32]  # (H, W, 3) colour channels 0..255, blended as floats
+# Colours (matplotlib colour strings). Blue/orange for covered/uncovered is safe for
+# red-green colour blindness; the target's sand and the occluders' grey differ in
+# lightness, so they stay apart in greyscale too.
+BACKGROUND = "#ffffff"
+TARGET_FILL = "#f7f2dc"
+TARGET_EDGE = "#5b5346"
+SENSOR_AREA_FILL = "#e3d3f1"
+SENSOR_AREA_EDGE = "#7b3fa8"
+FOOTPRINT_FILL = "#1f6fc5"
+FOOTPRINT_ALPHA = 0.3  # per footprint: two overlapping ones give 1 - 0.7^2
+FOOTPRINT_EDGE = "#1b4f80"
+OCCLUDER_FILL = "#707070"
+OCCLUDER_EDGE = "#4a4a4a"
+UNCOVERED = "#f26b0f"
+MAST_FILL = "#1c1c1c"
+MAST_TEXT = "#ffffff"
+# k > 1: cells covered by 1 .. k sensors (k: k or more) take viridis from yellow
+# (K_CMAP_LOW) to dark blue (K_CMAP_HIGH); 0 stays UNCOVERED.
+K_CMAP = "viridis"
+K_CMAP_LOW, K_CMAP_HIGH = 0.95, 0.25
 
-BACKGROUND: RGB = (255, 255, 255)
-TARGET_FILL: RGB = (217, 217, 217)
-TARGET_EDGE: RGB = (90, 90, 90)
-SENSOR_AREA_FILL: RGB = (226, 206, 242)
-SENSOR_AREA_EDGE: RGB = (118, 56, 163)
-FOOTPRINT_FILL: RGB = (30, 160, 60)
-FOOTPRINT_ALPHA = 0.25  # per footprint: two overlapping footprints give 1 - 0.75^2
-FOOTPRINT_EDGE: RGB = (20, 110, 40)
-UNCOVERED: RGB = (240, 70, 20)
-MAST_FILL: RGB = (140, 0, 0)
-MAST_RIM: RGB = (255, 255, 255)
-FRAME: RGB = (40, 40, 40)
-SCALE_DARK: RGB = (0, 0, 0)
-SCALE_LIGHT: RGB = (255, 255, 255)
+GAP_TEXT = "#a63603"  # darker orange: readable on white
+GAP_LABELS = 6
+GAP_LABEL_MIN_M2 = 20.0
 
-AREA_EDGE_PX = 2  # target and sensor-area outlines
-FOOTPRINT_EDGE_PX = 1
-MAST_RADIUS_PX = 5.0
-MAST_RIM_PX = 1.5
-SCALE_BAR_THICKNESS_PX = 6
-SCALE_BAR_OFFSET_PX = 12  # from the left and bottom image edges
-# Boundary samples per pixel of boundary length: 2 leaves no gaps in a 1-px line.
-_EDGE_SAMPLES_PER_PX = 2.0
-
-_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-_POLYGON = 3  # shapely type ids
-_COLLECTIONS = (4, 5, 6, 7)  # MultiPoint, MultiLineString, MultiPolygon, GeometryCollection
+DPI = 100
+MIN_WIDTH_PX = 800  # below this the legend column leaves the map too little room
+LEGEND_WIDTH_IN = 3.5
+LEFT_IN, GAP_IN, RIGHT_IN = 0.95, 0.3, 0.1
+TOP_IN, BOTTOM_IN = 1.0, 0.65
+MIN_HEIGHT_IN = 6.0  # room for the legend beside a wide, low map
+MAX_MAP_ASPECT = 1.6  # taller scenes get a narrower map rather than a very tall image
+FONT = 10
 
 
 # --------------------------------------------------------------------------- public API
 
 
-def render_png(result: Result, width_px: int = 1200, margin_m: float = 10.0) -> bytes:
-    """Top view of the layout as PNG bytes (8-bit RGB, north up, equal x/y scale).
+def render_png(
+    result: Result,
+    width_px: int = 1200,
+    margin_m: float = 10.0,
+    k_required: int | None = None,
+) -> bytes:
+    """The coverage map (see the module docstring) as PNG bytes, ``width_px`` wide.
 
-    The image covers the bounding box of targets, sensor areas, non-empty footprints,
-    masts and target points, grown by ``margin_m`` metres on every side; it is
-    ``width_px`` pixels wide and as high as the box's aspect ratio gives (at least 1).
-    See the module docstring for what is drawn and in which order.
+    k_required: the coverage the plan asks for per target point; None reads
+    ``result.settings.k`` and falls back to 1. With k > 1 every target cell is
+    coloured by how many sensors cover it.
     """
-    return encode_png(render_rgb(result, width_px, margin_m))
+    from matplotlib.style import context
 
-
-def render_rgb(result: Result, width_px: int = 1200, margin_m: float = 10.0) -> NDArray[np.uint8]:
-    """The picture ``render_png`` encodes, as an (H, W, 3) uint8 array, row 0 = north."""
     t0 = time.perf_counter()
+    fig = coverage_figure(result, width_px, margin_m, k_required)
+    buf = io.BytesIO()
+    # "Software" is the only metadata Agg writes by default; without it the bytes
+    # depend on the result alone. The default style again: savefig reads rcParams.
+    with context("default"):
+        fig.savefig(buf, format="png", dpi=DPI, facecolor=BACKGROUND, metadata={"Software": None})
+    data = buf.getvalue()
+    logger.debug("coverage map %d bytes in %.3f s", len(data), time.perf_counter() - t0)
+    return data
+
+
+def coverage_figure(
+    result: Result,
+    width_px: int = 1200,
+    margin_m: float = 10.0,
+    k_required: int | None = None,
+) -> Figure:
+    """The map as a matplotlib ``Figure`` with an Agg canvas, not yet drawn; its one
+    Axes is the map in world metres (``fig.axes[0]``)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.style import context
+
     n_points = len(result.points)
     if len(result.n_covered) != n_points:
         raise ValueError(f"result has {n_points} points but {len(result.n_covered)} n_covered")
-    view = View.fit(_world_bounds(result), width_px, margin_m)
-    img = np.empty((view.height, view.width, 3), np.float32)
-    img[:] = BACKGROUND
+    if width_px < MIN_WIDTH_PX:
+        raise ValueError(f"width_px must be at least {MIN_WIDTH_PX}, got {width_px}")
+    if margin_m < 0:
+        raise ValueError(f"margin_m must not be negative, got {margin_m}")
+    k = int(k_required if k_required is not None else getattr(result.settings, "k", 1) or 1)
+    if k < 1:
+        raise ValueError(f"k_required must be at least 1, got {k}")
 
-    targets = [g for _, g in result.targets]
-    areas = [g for _, g in result.sensor_areas]
-    footprints = [s.footprint for s in result.sensors if not s.footprint.is_empty]
-    for geom in targets:
-        fill_polygon(img, view, geom, TARGET_FILL)
-    for geom in areas:
-        fill_polygon(img, view, geom, SENSOR_AREA_FILL)
-    for geom in footprints:
-        fill_polygon(img, view, geom, FOOTPRINT_FILL, FOOTPRINT_ALPHA)
-    for geom in footprints:
-        stroke_polygon(img, view, geom, FOOTPRINT_EDGE, FOOTPRINT_EDGE_PX)
-
-    n_uncovered = 0
-    if n_points:  # an empty points array may come without its second axis
-        uncovered = result.points[np.asarray(result.n_covered) == 0]
-        n_uncovered = len(uncovered)
-        fill_cells(img, view, uncovered[:, 0], uncovered[:, 1], result.cell_m, UNCOVERED)
-
-    for geom in targets:
-        stroke_polygon(img, view, geom, TARGET_EDGE, AREA_EDGE_PX)
-    for geom in areas:
-        stroke_polygon(img, view, geom, SENSOR_AREA_EDGE, AREA_EDGE_PX)
-    for mast in result.masts:
-        draw_disc(img, view, mast.x, mast.y, MAST_RADIUS_PX, MAST_FILL, MAST_RIM, MAST_RIM_PX)
-    draw_scale_bar(img, view)
-    draw_frame(img, FRAME)
-
-    rgb = np.rint(img).clip(0, 255).astype(np.uint8)
-    logger.debug(
-        "coverage map %dx%d px, %.3f px/m, %d footprints, %d uncovered of %d points, %.3f s",
-        view.width,
-        view.height,
-        view.scale,
-        len(footprints),
-        n_uncovered,
-        n_points,
-        time.perf_counter() - t0,
-    )
-    return rgb
-
-
-def encode_png(rgb: NDArray[np.uint8]) -> bytes:
-    """PNG bytes of an (H, W, 3) uint8 image: 8-bit truecolour, no interlace, one IDAT,
-    filter type 0 (none) on every row; zlib does all the compression work."""
-    rgb = np.asarray(rgb)
-    if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.dtype != np.uint8:
-        raise ValueError(f"need an (H, W, 3) uint8 array, got {rgb.shape} {rgb.dtype}")
-    height, width = rgb.shape[:2]
-    if height < 1 or width < 1:
-        raise ValueError(f"image must be at least 1 x 1 pixels, got {width} x {height}")
-    # Each scanline is prefixed with its filter-type byte (0).
-    rows = np.zeros((height, 1 + 3 * width), np.uint8)
-    rows[:, 1:] = rgb.reshape(height, 3 * width)
-    header = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)  # depth 8, colour type 2
-    return b"".join(
-        (
-            _PNG_SIGNATURE,
-            _png_chunk(b"IHDR", header),
-            _png_chunk(b"IDAT", zlib.compress(rows.tobytes(), 6)),
-            _png_chunk(b"IEND", b""),
+    box = view_box(result, margin_m)
+    width_in = width_px / DPI
+    fig_h, axes_rect = _layout(box, width_in)
+    with context("default"):
+        fig = Figure(figsize=(width_in, fig_h), dpi=DPI, facecolor=BACKGROUND)
+        FigureCanvasAgg(fig)
+        ax = fig.add_axes(axes_rect)
+        _draw_map(ax, result, k)
+        ax.set_xlim(box[0], box[2])
+        ax.set_ylim(box[1], box[3])
+        ax.set_aspect("equal", adjustable="box")
+        ax.set_xlabel("x east [m]", fontsize=FONT)
+        ax.set_ylabel("y north [m]", fontsize=FONT)
+        ax.ticklabel_format(useOffset=False, style="plain")
+        ax.tick_params(labelsize=FONT - 1)
+        ax.grid(True, color="#000000", alpha=0.08, linewidth=0.6)
+        ax.set_axisbelow(True)
+        _scale_bar(ax, box[2] - box[0])
+        _title(fig, result, k, axes_rect[0], fig_h)
+        fig.legend(
+            handles=_legend_handles(result, k),
+            loc="upper left",
+            bbox_to_anchor=(
+                axes_rect[0] + axes_rect[2] + GAP_IN / width_in,
+                axes_rect[1] + axes_rect[3],
+            ),
+            frameon=False,
+            fontsize=FONT - 1,
+            title="Legend",
+            title_fontproperties={"weight": "bold", "size": FONT},
+            alignment="left",
+            handlelength=1.6,
+            handleheight=1.1,
+            labelspacing=0.7,
         )
-    )
+    return fig
 
 
-# ------------------------------------------------------------------------ world <-> pixel
+def summary(result: Result, k: int = 1) -> str:
+    """The line under the title: the plan in numbers.
+
+    "12 sensors on 5 masts · coverage 93.4 % of 8,120 m^2 · cost 17 >= lower bound 15
+    (gap 11.8 %)", with k > 1 also "covered by >= k sensors: 80.1 %", "no lower bound"
+    when an optimization proved none; an evaluated layout has no objective and shows
+    none.
+    """
+    m = result.metrics
+    sensors = m.get("sensors", len(result.sensors))
+    masts = m.get("masts", len(result.masts))
+    fraction = m.get("coverage_fraction", result.coverage_fraction)
+    parts = [f"{sensors} sensor{'s' * (sensors != 1)} on {masts} mast{'s' * (masts != 1)}"]
+    cover = f"coverage {100 * fraction:.1f} %"
+    if m.get("target_area_m2"):
+        cover += f" of {m['target_area_m2']:,.0f} m²"
+    parts.append(cover)
+    if k > 1:
+        parts.append(f"covered by ≥ {k} sensors: {100 * k_fraction(result, k):.1f} %")
+    if m.get("objective") is not None:
+        name = str(getattr(result.settings, "objective", "objective"))
+        if m.get("lower_bound") is not None and m.get("gap") is not None:
+            parts.append(
+                f"{name} {m['objective']:g} ≥ lower bound {m['lower_bound']:g} "
+                f"(gap {100 * m['gap']:.1f} %)"
+            )
+        else:
+            parts.append(f"{name} {m['objective']:g}, no lower bound")
+    return "  ·  ".join(parts)
 
 
-@dataclass(frozen=True)
-class View:
-    """Maps world metres to image pixels: ``scale`` px per metre, ``(x_left, y_top)`` the
-    world position of the image's top-left corner, image ``width`` x ``height`` px."""
-
-    x_left: float
-    y_top: float
-    scale: float
-    width: int
-    height: int
-
-    @classmethod
-    def fit(cls, bounds: tuple[float, float, float, float], width_px: int, margin_m: float) -> View:
-        """The view of world ``bounds`` (xmin, ymin, xmax, ymax) plus ``margin_m`` on each
-        side, ``width_px`` wide; the height is rounded, so the box is centred vertically
-        and the image may show up to half a pixel more or less at top and bottom."""
-        if width_px < 1:
-            raise ValueError(f"width_px must be at least 1, got {width_px}")
-        if margin_m < 0:
-            raise ValueError(f"margin_m must not be negative, got {margin_m}")
-        xmin, ymin, xmax, ymax = bounds
-        # A single point or nothing at all still needs a finite scale.
-        span_x = max(xmax - xmin + 2 * margin_m, 1.0)
-        span_y = max(ymax - ymin + 2 * margin_m, 0.0)
-        scale = width_px / span_x
-        height = max(1, round(span_y * scale))
-        return cls(
-            x_left=(xmin + xmax) / 2 - span_x / 2,
-            y_top=(ymin + ymax) / 2 + height / scale / 2,
-            scale=scale,
-            width=width_px,
-            height=height,
+def details(result: Result) -> str:
+    """The grey line under the summary: how the plan was made (optimizer and coverage
+    goal, or "evaluated layout"), the sensor model, the cost rule, the target grid."""
+    settings = result.settings
+    parts = []
+    if getattr(settings, "optimizer", None):
+        goal = getattr(settings, "rho", None)
+        parts.append(
+            f"{settings.optimizer} optimizer"
+            + (f", coverage goal {100 * goal:g} %" if goal is not None else "")
         )
-
-    def to_px(
-        self, x: NDArray[np.float64] | float, y: NDArray[np.float64] | float
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Continuous (col, row) pixel coordinates of world points (x, y), any shape."""
-        return (np.asarray(x) - self.x_left) * self.scale, (self.y_top - np.asarray(y)) * self.scale
-
-    def pixel_window(self, bounds: tuple[float, float, float, float]) -> tuple[slice, slice]:
-        """(rows, cols) slices of the pixels whose centres may lie in world ``bounds``,
-        clipped to the image (possibly empty)."""
-        xmin, ymin, xmax, ymax = bounds
-        c0, r0 = self.to_px(xmin, ymax)
-        c1, r1 = self.to_px(xmax, ymin)
-        cols = slice(_clip(math.floor(c0), self.width), _clip(math.ceil(c1), self.width))
-        rows = slice(_clip(math.floor(r0), self.height), _clip(math.ceil(r1), self.height))
-        return rows, cols
-
-    def pixel_centres(
-        self, rows: slice, cols: slice
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """World x, y of the centres of the pixels in ``rows`` x ``cols``, each (R, C)."""
-        xs = self.x_left + (np.arange(cols.start, cols.stop) + 0.5) / self.scale
-        ys = self.y_top - (np.arange(rows.start, rows.stop) + 0.5) / self.scale
-        grid_x, grid_y = np.meshgrid(xs, ys)
-        return grid_x, grid_y
+    elif result.sensors:
+        parts.append("evaluated layout")
+    model = result.model
+    if model is None and len({s.model for s in result.sensors}) == 1:
+        model = result.sensors[0].model
+    if model is not None:
+        parts.append(
+            f"{model.kind} {model.h_fov_deg:g}° × {model.v_fov_deg:g}°, {model.range_m:g} m range"
+        )
+    if getattr(settings, "objective", None) == "cost":
+        parts.append(
+            f"cost = {settings.mast_cost:g} per mast + {settings.sensor_cost:g} per sensor"
+        )
+    if len(result.points):
+        parts.append(f"{result.cell_m:g} m target grid")
+    return "  ·  ".join(parts)
 
 
-def _clip(i: int, n: int) -> int:
-    return min(max(i, 0), n)
+def k_fraction(result: Result, k: int) -> float:
+    """Share of target points covered by at least ``k`` sensors (0 with no points)."""
+    n = np.asarray(result.n_covered)
+    return float((n >= k).mean()) if len(n) else 0.0
 
 
-def _world_bounds(result: Result) -> tuple[float, float, float, float]:
-    """(xmin, ymin, xmax, ymax) in world metres of everything drawn; all zeros if the
-    result holds nothing."""
+def view_box(result: Result, margin_m: float = 10.0) -> tuple[float, float, float, float]:
+    """(xmin, ymin, xmax, ymax) world metres the map shows: targets, sensor areas,
+    non-empty footprints, masts and target cells, grown by ``margin_m``; a box at
+    least 1 m wide and high (10 m around the origin for an empty result)."""
     geoms = [g for _, g in result.targets] + [g for _, g in result.sensor_areas]
     geoms += [s.footprint for s in result.sensors]
     boxes = [g.bounds for g in geoms if not g.is_empty]
-    xy = [(m.x, m.y) for m in result.masts]
+    boxes += [(m.x, m.y, m.x, m.y) for m in result.masts]
     if len(result.points):
         pts = np.asarray(result.points)[:, :2]
-        # Half a cell each way: the uncovered cells are drawn as squares of cell_m.
         half = result.cell_m / 2
         boxes.append((*(pts.min(axis=0) - half), *(pts.max(axis=0) + half)))
-    boxes += [(x, y, x, y) for x, y in xy]
     if not boxes:
-        return (0.0, 0.0, 0.0, 0.0)
-    b = np.array(boxes, np.float64)
-    return (b[:, 0].min(), b[:, 1].min(), b[:, 2].max(), b[:, 3].max())
+        boxes = [(-5.0, -5.0, 5.0, 5.0)]
+    b = np.array(boxes, dtype=float)
+    xmin, ymin = b[:, 0].min() - margin_m, b[:, 1].min() - margin_m
+    xmax, ymax = b[:, 2].max() + margin_m, b[:, 3].max() + margin_m
+    # A single point, or a line, still needs an area to show.
+    cx, cy = (xmin + xmax) / 2, (ymin + ymax) / 2
+    half_w, half_h = max(xmax - xmin, 1.0) / 2, max(ymax - ymin, 1.0) / 2
+    return (cx - half_w, cy - half_h, cx + half_w, cy + half_h)
 
 
-# ------------------------------------------------------------------------------ drawing
+def scale_bar_length(world_width_m: float) -> float:
+    """The scale bar's length in metres: the largest 1, 2 or 5 x 10^n not over a fifth
+    of the map's width."""
+    target = max(world_width_m / 5, 1e-9)
+    decade = 10.0 ** math.floor(math.log10(target))
+    return max(m * decade for m in (1.0, 2.0, 5.0) if m * decade <= target * (1 + 1e-12))
 
 
-def _polygons(geom: BaseGeometry) -> list[BaseGeometry]:
-    """The non-empty Polygons in a Polygon, MultiPolygon or GeometryCollection (lines and
-    points in a collection have no area and are dropped)."""
-    parts = shapely.get_parts(geom)
-    # Collections may nest, and a one-part Multi* is still a Multi*: flatten until none.
-    while np.isin(shapely.get_type_id(parts), _COLLECTIONS).any():
-        parts = shapely.get_parts(parts)
-    keep = (shapely.get_type_id(parts) == _POLYGON) & ~shapely.is_empty(parts)
-    return list(parts[keep])
+def length_label(metres: float) -> str:
+    """ "20 m", "500 m", "1 km", "2.5 km"."""
+    if metres >= 1000:
+        return f"{metres / 1000:g} km"
+    return f"{metres:g} m"
 
 
-def _blend(target: Canvas, mask: NDArray[np.bool_], colour: RGB, alpha: float) -> None:
-    """Paint ``colour`` with opacity ``alpha`` (1 = opaque) over ``target`` where ``mask``."""
-    if alpha >= 1.0:
-        target[mask] = colour
-    else:
-        target[mask] = target[mask] * (1.0 - alpha) + np.asarray(colour, np.float32) * alpha
+# ------------------------------------------------------------------------------ layout
 
 
-def fill_polygon(
-    img: Canvas, view: View, geom: BaseGeometry, colour: RGB, alpha: float = 1.0
-) -> None:
-    """Fill the pixels whose centres lie inside ``geom`` (world XY; holes stay unfilled).
+def _layout(
+    box: tuple[float, float, float, float], width_in: float
+) -> tuple[float, tuple[float, float, float, float]]:
+    """Figure height (in) and the map's axes rectangle (figure fractions) for a
+    ``width_in`` wide figure: the map left, the legend column right, the title above;
+    the axes box has the view box's aspect, so equal scale leaves no blank strips."""
+    aspect = (box[3] - box[1]) / (box[2] - box[0])
+    map_w = width_in - LEFT_IN - GAP_IN - LEGEND_WIDTH_IN - RIGHT_IN
+    map_h = map_w * aspect
+    if aspect > MAX_MAP_ASPECT:
+        map_h = map_w * MAX_MAP_ASPECT
+        map_w = map_h / aspect
+    fig_h = max(map_h + TOP_IN + BOTTOM_IN, MIN_HEIGHT_IN)
+    bottom = fig_h - TOP_IN - map_h  # top-aligned: spare height goes below
+    rect = (LEFT_IN / width_in, bottom / fig_h, map_w / width_in, map_h / fig_h)
+    return fig_h, rect
 
-    Each polygon part is tested over the pixel window of its own bounding box only, with
-    a prepared geometry, which keeps large images with many small footprints fast.
-    Parts of a valid MultiPolygon do not overlap, so each pixel is blended at most once.
-    """
-    for poly in _polygons(geom):
-        rows, cols = view.pixel_window(poly.bounds)
-        if rows.start == rows.stop or cols.start == cols.stop:
-            continue
-        xs, ys = view.pixel_centres(rows, cols)
-        shapely.prepare(poly)
-        inside = shapely.contains_xy(poly, xs, ys)
-        _blend(img[rows, cols], inside, colour, alpha)
+
+# ----------------------------------------------------------------------------- drawing
 
 
-def stroke_polygon(
-    img: Canvas, view: View, geom: BaseGeometry, colour: RGB, width_px: int = 1
-) -> None:
-    """Draw the exterior and interior rings of ``geom`` as lines ``width_px`` pixels wide.
+def _polygons(geom: BaseGeometry) -> list[Polygon]:
+    """The non-empty Polygons in a Polygon, MultiPolygon or (nested) collection; lines
+    and points have no area and are dropped."""
+    out: list[Polygon] = []
+    for part in shapely.get_parts(geom):
+        if isinstance(part, Polygon):
+            if not part.is_empty:
+                out.append(part)
+        elif hasattr(part, "geoms"):
+            out += _polygons(part)
+    return out
 
-    Every ring segment is sampled at ``_EDGE_SAMPLES_PER_PX`` points per pixel of its
-    length (in pixel space) and each sample sets the ``width_px`` x ``width_px`` block of
-    pixels centred on it (for width 1: the pixel it falls in).
-    """
-    polys = _polygons(geom)
-    if not polys:
-        return
-    rings = shapely.get_rings(np.array(polys, dtype=object))
-    coords, ring_of = shapely.get_coordinates(rings, return_index=True)
-    if len(coords) < 2:
-        return
-    col, row = view.to_px(coords[:, 0], coords[:, 1])
-    p = np.column_stack([col, row])
-    same_ring = ring_of[1:] == ring_of[:-1]  # don't join the last point of one ring to the next
-    start, delta = p[:-1][same_ring], (p[1:] - p[:-1])[same_ring]
-    n_steps = np.maximum(
-        1, np.ceil(np.hypot(delta[:, 0], delta[:, 1]) * _EDGE_SAMPLES_PER_PX).astype(np.int64)
+
+def _patches(geoms: list[BaseGeometry], **style: Any) -> Any:
+    """One PatchCollection of every polygon in ``geoms`` (holes stay open)."""
+    from matplotlib.collections import PatchCollection
+    from shapely.plotting import patch_from_polygon
+
+    patches = [patch_from_polygon(p) for g in geoms for p in _polygons(g)]
+    return PatchCollection(patches, **style)
+
+
+def _cells(xy: NDArray[np.float64], cell_m: float, colours: Any, zorder: float) -> Any:
+    """Squares of side ``cell_m`` centred on ``xy`` (N, 2): the target grid's cells."""
+    from matplotlib.collections import PolyCollection
+
+    h = cell_m / 2
+    corners = np.array([[-h, -h], [h, -h], [h, h], [-h, h]])
+    verts = xy[:, None, :] + corners[None, :, :]
+    return PolyCollection(
+        verts, facecolors=colours, edgecolors="none", antialiased=False, zorder=zorder
     )
-    seg = np.repeat(np.arange(len(start)), n_steps + 1)  # samples at t = 0, 1/n, ..., 1
-    first = np.repeat(np.cumsum(n_steps + 1) - (n_steps + 1), n_steps + 1)
-    t = (np.arange(len(seg)) - first) / n_steps[seg]
-    samples = start[seg] + t[:, None] * delta[seg]
-    # Shift so a wide line straddles the boundary instead of lying to one side of it.
-    corner = np.floor(samples - (width_px - 1) / 2)
-    _set_blocks(img, corner[:, 1], corner[:, 0], width_px, colour)
 
 
-def _set_blocks(
-    img: Canvas, rows: NDArray[np.float64], cols: NDArray[np.float64], size: int, colour: RGB
-) -> None:
-    """Set the ``size`` x ``size`` pixel blocks whose top-left pixels are (rows, cols)."""
-    height, width = img.shape[:2]
-    r0, c0 = rows.astype(np.int64), cols.astype(np.int64)
-    for dr in range(size):
-        for dc in range(size):
-            r, c = r0 + dr, c0 + dc
-            ok = (r >= 0) & (r < height) & (c >= 0) & (c < width)
-            img[r[ok], c[ok]] = colour
+def covered_colour() -> str:
+    """The target's colour under one footprint layer."""
+    from matplotlib.colors import to_hex, to_rgb
+
+    under, over = np.array(to_rgb(TARGET_FILL)), np.array(to_rgb(FOOTPRINT_FILL))
+    return to_hex(under + (over - under) * FOOTPRINT_ALPHA)
 
 
-def fill_cells(
-    img: Canvas,
-    view: View,
-    x: NDArray[np.float64],
-    y: NDArray[np.float64],
-    cell_m: float,
-    colour: RGB,
-) -> None:
-    """Fill the square cells of side ``cell_m`` centred on world points (x, y), each (N,).
+def k_colours(k: int) -> list[str]:
+    """Colours of cells covered by 0, 1, ..., k sensors (the last: k or more)."""
+    from matplotlib import colormaps
+    from matplotlib.colors import to_hex
 
-    A cell gets the pixels whose centres it contains, so neighbouring grid cells tile
-    without gaps or overlap; a cell smaller than a pixel gets the pixel its centre is in.
-    The (N,) rectangles go into a 2-D difference array, so the cost is N + H * W rather
-    than N * cell pixels.
-    """
-    if len(x) == 0:
-        return
-    height, width = img.shape[:2]
-    c_lo, c_hi = _cell_span(view.to_px(x, y)[0], cell_m * view.scale / 2, width)
-    r_lo, r_hi = _cell_span(view.to_px(x, y)[1], cell_m * view.scale / 2, height)
-    ok = (c_hi > c_lo) & (r_hi > r_lo)
-    c_lo, c_hi, r_lo, r_hi = c_lo[ok], c_hi[ok], r_lo[ok], r_hi[ok]
-    diff = np.zeros((height + 1, width + 1), np.int32)
-    np.add.at(diff, (r_lo, c_lo), 1)
-    np.add.at(diff, (r_lo, c_hi), -1)
-    np.add.at(diff, (r_hi, c_lo), -1)
-    np.add.at(diff, (r_hi, c_hi), 1)
-    covered = diff.cumsum(axis=0).cumsum(axis=1)[:height, :width] > 0
-    img[covered] = colour
+    cmap = colormaps[K_CMAP]
+    steps = np.linspace(K_CMAP_LOW, K_CMAP_HIGH, k)
+    return [UNCOVERED, *[to_hex(cmap(float(t))) for t in steps]]
 
 
-def _cell_span(
-    centre_px: NDArray[np.float64], half_px: float, n: int
-) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """[lo, hi) pixel index range along one axis of cells centred at ``centre_px`` with
-    half-size ``half_px`` (pixels whose centre k + 0.5 lies in [c - h, c + h)),
-    at least the pixel holding the centre, clipped to [0, n]."""
-    # Rounded before ceil: the shared edge of two neighbouring cells, computed from each
-    # centre, may differ by an ulp across an integer and leave a one-pixel seam.
-    lo = np.ceil(np.round(centre_px - half_px - 0.5, 6)).astype(np.int64)
-    hi = np.ceil(np.round(centre_px + half_px - 0.5, 6)).astype(np.int64)
-    tiny = hi <= lo
-    lo[tiny] = np.floor(centre_px[tiny]).astype(np.int64)
-    hi[tiny] = lo[tiny] + 1
-    return np.clip(lo, 0, n), np.clip(hi, 0, n)
+def _draw_map(ax: Axes, result: Result, k: int) -> None:
+    """Every layer of the map, in world metres, in the order the module docstring gives."""
+    targets = [g for _, g in result.targets]
+    areas = [g for _, g in result.sensor_areas]
+    footprints = [s.footprint for s in result.sensors if not s.footprint.is_empty]
+    ax.add_collection(
+        _patches(targets, facecolor=TARGET_FILL, edgecolor="none", linewidth=0, zorder=1)
+    )
+    ax.add_collection(
+        _patches(areas, facecolor=SENSOR_AREA_FILL, edgecolor=SENSOR_AREA_EDGE, linewidth=1.0,
+                 zorder=1.5)
+    )  # fmt: skip
+    ax.add_collection(
+        _patches(footprints, facecolor=FOOTPRINT_FILL, alpha=FOOTPRINT_ALPHA, edgecolor="none",
+                 zorder=2)
+    )  # fmt: skip
+    ax.add_collection(
+        _patches(footprints, facecolor="none", edgecolor=FOOTPRINT_EDGE, linewidth=0.5,
+                 alpha=0.6, zorder=2.1)
+    )  # fmt: skip
+    ax.add_collection(
+        _patches(list(result.occluder_outlines), facecolor=OCCLUDER_FILL,
+                 edgecolor=OCCLUDER_EDGE, linewidth=0.5, zorder=3)
+    )  # fmt: skip
+
+    if len(result.points):
+        xy = np.asarray(result.points, dtype=float)[:, :2]
+        n = np.asarray(result.n_covered)
+        if k > 1:
+            colours = np.array(k_colours(k))[np.minimum(n, k)]
+            ax.add_collection(_cells(xy, result.cell_m, colours, zorder=4))
+        elif (n == 0).any():
+            ax.add_collection(_cells(xy[n == 0], result.cell_m, UNCOVERED, zorder=4))
+
+    ax.add_collection(
+        _patches(targets, facecolor="none", edgecolor=TARGET_EDGE, linewidth=0.9, zorder=5)
+    )
+    _label_gaps(ax, result)
+    for mast in result.masts:
+        ax.text(
+            mast.x,
+            mast.y,
+            str(mast.n),
+            ha="center",
+            va="center",
+            color=MAST_TEXT,
+            fontsize=FONT - 3,
+            fontweight="bold",
+            zorder=7,
+            gid=f"mast-{mast.n}",
+            bbox={"boxstyle": "circle,pad=0.28", "fc": MAST_FILL, "ec": "white", "lw": 0.8},
+        )
 
 
-def draw_disc(
-    img: Canvas,
-    view: View,
-    x: float,
-    y: float,
-    radius_px: float,
-    fill: RGB,
-    rim: RGB,
-    rim_px: float,
-) -> None:
-    """A disc of ``radius_px`` pixels at world (x, y), with a ring ``rim_px`` wide
-    around it; sized in pixels so masts stay visible at any scale."""
-    height, width = img.shape[:2]
-    col, row = view.to_px(x, y)
-    outer = radius_px + rim_px
-    r0, r1 = _clip(math.floor(row - outer), height), _clip(math.ceil(row + outer) + 1, height)
-    c0, c1 = _clip(math.floor(col - outer), width), _clip(math.ceil(col + outer) + 1, width)
-    if r0 == r1 or c0 == c1:
-        return
-    dr = np.arange(r0, r1)[:, None] + 0.5 - row
-    dc = np.arange(c0, c1)[None, :] + 0.5 - col
-    dist = np.hypot(dr, dc)
-    window = img[r0:r1, c0:c1]
-    window[dist <= outer] = rim
-    window[dist <= radius_px] = fill
+def _label_gaps(ax: Axes, result: Result) -> None:
+    """The m^2 of the largest uncovered patches (``Result.uncovered``), beside their
+    centroids: at most ``GAP_LABELS``, each at least ``GAP_LABEL_MIN_M2``."""
+    from matplotlib.patheffects import withStroke
+
+    big = [p for p in result.uncovered if p["m2"] >= GAP_LABEL_MIN_M2][:GAP_LABELS]
+    for patch in big:
+        ax.annotate(
+            f"{patch['m2']:,.0f} m²",
+            (patch["x"], patch["y"]),
+            xytext=(7, -7),
+            textcoords="offset points",
+            ha="left",
+            va="top",
+            fontsize=FONT - 2,
+            fontweight="bold",
+            color=GAP_TEXT,
+            zorder=6,
+            path_effects=[withStroke(linewidth=2.5, foreground="white")],
+        )
 
 
-def scale_bar_m(world_width_m: float) -> tuple[float, float]:
-    """(bar length, segment length) in metres for an image ``world_width_m`` wide: the
-    largest of 10, 20, 50, 100, 200, ... m not over a quarter of the width (at least
-    10 m), cut into 10 m segments, 100 m beyond 100 m, 1 km beyond 1 km, and so on."""
-    length = 10.0
-    for decade in range(1, 9):
-        for mantissa in (1, 2, 5):
-            candidate = mantissa * 10.0**decade
-            if candidate <= world_width_m / 4:
-                length = candidate
-    segment = 10.0 ** max(1, math.ceil(math.log10(length) - 1e-9) - 1)
-    return length, segment
+def _title(fig: Figure, result: Result, k: int, left: float, fig_h: float) -> None:
+    """Scene name, ``summary`` and ``details`` above the map, from its left edge; a
+    line too long for the figure is set smaller until it fits."""
+    renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]
+    lines: tuple[tuple[str, float, str, str, float], ...] = (
+        (result.scene or "coverage map", FONT + 4, "bold", "black", 0.12),
+        (summary(result, k), FONT + 1, "normal", "black", 0.45),
+        (details(result), FONT - 1, "normal", "#555555", 0.70),
+    )
+    for text, size, weight, colour, from_top_in in lines:
+        if not text:
+            continue
+        artist = fig.text(left, 1 - from_top_in / fig_h, text, ha="left", va="top",
+                          fontsize=size, fontweight=weight, color=colour)  # fmt: skip
+        while size > 6 and artist.get_window_extent(renderer).x1 > fig.bbox.width - 8:
+            size -= 0.5
+            artist.set_fontsize(size)
 
 
-def draw_scale_bar(img: Canvas, view: View) -> None:
-    """Scale bar at the bottom left (see ``scale_bar_m``): alternating dark and light
-    segments inside a one-pixel dark outline; skipped if it does not fit in the image."""
-    height, width = img.shape[:2]
-    length_m, segment_m = scale_bar_m(width / view.scale)
-    length_px = round(length_m * view.scale)
-    r1 = height - SCALE_BAR_OFFSET_PX
-    r0 = r1 - SCALE_BAR_THICKNESS_PX
-    c0 = SCALE_BAR_OFFSET_PX
-    if r0 < 0 or c0 + length_px > width or length_px < 2:
-        return
-    # Segment index of every bar column, from the metres it stands for.
-    metres = (np.arange(length_px) + 0.5) / view.scale
-    dark = (np.floor(metres / segment_m).astype(np.int64) % 2) == 0
-    img[r0:r1, c0 : c0 + length_px] = np.where(dark[:, None], SCALE_DARK, SCALE_LIGHT)
-    bar = img[r0:r1, c0 : c0 + length_px]
-    bar[[0, -1], :] = SCALE_DARK
-    bar[:, [0, -1]] = SCALE_DARK
+def _scale_bar(ax: Axes, world_width_m: float) -> None:
+    from matplotlib.font_manager import FontProperties
+    from mpl_toolkits.axes_grid1.anchored_artists import (  # type: ignore[import-untyped]
+        AnchoredSizeBar,
+    )
+
+    length = scale_bar_length(world_width_m)
+    bar = AnchoredSizeBar(
+        ax.transData,
+        length,
+        length_label(length),
+        loc="lower left",
+        pad=0.4,
+        borderpad=0.8,
+        sep=4,
+        frameon=True,
+        size_vertical=world_width_m / 200,
+        color="black",
+        fontproperties=FontProperties(size=FONT - 1),
+        zorder=8,
+    )
+    bar.patch.set_facecolor("white")
+    bar.patch.set_alpha(0.85)
+    bar.patch.set_edgecolor("#999999")
+    ax.add_artist(bar)
 
 
-def draw_frame(img: Canvas, colour: RGB) -> None:
-    """A one-pixel border around the whole image."""
-    img[[0, -1], :] = colour
-    img[:, [0, -1]] = colour
+def _legend_handles(result: Result, k: int) -> list[Any]:
+    """Proxy artists for the legend: one per layer present, with its counts."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
 
-
-# ---------------------------------------------------------------------------------- PNG
-
-
-def _png_chunk(kind: bytes, data: bytes) -> bytes:
-    """length, type, data, CRC-32 of type + data (all big-endian)."""
-    crc = zlib.crc32(kind + data) & 0xFFFFFFFF
-    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", crc)
+    handles: list[Any] = []
+    n = np.asarray(result.n_covered)
+    if result.targets:
+        area = result.metrics.get("target_area_m2") or sum(g.area for _, g in result.targets)
+        handles.append(
+            Patch(fc=TARGET_FILL, ec=TARGET_EDGE, lw=0.9,
+                  label=f"target area: roads to watch ({area:,.0f} m²)")
+        )  # fmt: skip
+    if len(n) and k > 1:
+        counts = np.bincount(np.minimum(n, k), minlength=k + 1)
+        for level, colour in enumerate(k_colours(k)):
+            who = f"{level} sensor{'s' * (level != 1)}" + (" or more" if level == k else "")
+            share = 100 * counts[level] / len(n)
+            handles.append(Patch(fc=colour, label=f"target covered by {who} ({share:.1f} %)"))
+    elif len(n):
+        if n.any() and result.sensors:
+            handles.append(
+                Patch(fc=covered_colour(), ec=TARGET_EDGE, lw=0.9,
+                      label="target covered by a sensor")
+            )  # fmt: skip
+        gaps = int(np.count_nonzero(n == 0))
+        handles.append(
+            Patch(fc=UNCOVERED, label=f"target not covered: {gaps * result.cell_m**2:,.0f} m²"
+                  f" ({100 * gaps / len(n):.1f} %);\nlabels: the largest gaps")
+        )  # fmt: skip
+    n_fp = sum(1 for s in result.sensors if not s.footprint.is_empty)
+    if n_fp:
+        handles.append(
+            Patch(fc=FOOTPRINT_FILL, alpha=FOOTPRINT_ALPHA, ec=FOOTPRINT_EDGE, lw=0.5,
+                  label=f"sensor footprints ({n_fp}): ground a\nsensor covers; overlaps darker")
+        )  # fmt: skip
+    if result.sensor_areas:
+        count = len(result.sensor_areas)
+        handles.append(
+            Patch(fc=SENSOR_AREA_FILL, ec=SENSOR_AREA_EDGE, lw=1.0,
+                  label=f"sensor area{'s' * (count != 1)}: where masts may stand ({count})")
+        )  # fmt: skip
+    if result.masts:
+        handles.append(
+            Line2D([], [], ls="none", marker="o", ms=11, mfc=MAST_FILL, mec="white",
+                   label=f"masts ({len(result.masts)}), numbered as in\nsensors.csv")
+        )  # fmt: skip
+    if result.occluder_outlines:
+        handles.append(
+            Patch(fc=OCCLUDER_FILL, ec=OCCLUDER_EDGE, lw=0.5,
+                  label="occluders: buildings, walls,\ntrees (top view)")
+        )  # fmt: skip
+    return handles
