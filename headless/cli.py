@@ -82,6 +82,12 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="processes that evaluate in parallel (default: one per core, one inside a Blender binary; same answer)",
     )
+    opt.add_argument(
+        "--render",
+        action="store_true",
+        help="also write result_view.png: an oblique view of result.blend rendered by "
+        "Blender (Workbench, a few seconds)",
+    )
 
     bld = sub.add_parser("build", help="build the extension zips (one per platform)")
     bld.add_argument("--out-dir", default="dist", help="default dist/")

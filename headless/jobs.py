@@ -6,10 +6,14 @@ import argparse
 import os
 import sys
 import tempfile
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
-from autoscoop_blender.core.errors import InputError
+from autoscoop_blender.core.errors import AutoscoopError, InputError
 from autoscoop_blender.core.evaluate import evaluate_layout
 from autoscoop_blender.core.result import Result
 from autoscoop_blender.core.run import Run
@@ -93,7 +97,7 @@ def optimize(args: argparse.Namespace) -> int:
         return 130
     bar.close()
     result = run.result()
-    write_results(result, out_dir)
+    write_results(result, out_dir, render=args.render)
     m = result.metrics
     print(
         f"{m['sensors']} sensors on {m['masts']} masts cover {m['coverage_fraction']:.2%} "
@@ -117,9 +121,13 @@ def default_scene() -> str | None:
     return None if bpy.data.filepath else str(SAMPLES / "two_routes.blend")
 
 
-def write_results(result: Result, out_dir: Path) -> None:
+def write_results(result: Result, out_dir: Path, render: bool = False) -> None:
     """result.json, sensors.csv, sensors.geojson, coverage.png and result.blend, all
-    or none; result.blend holds the scene with the results collection."""
+    or none; result.blend holds the scene with the results collection.
+
+    render: also result_view.png, the oblique view of that scene, rendered after
+    result.blend's bytes were taken; the render leaves the scene as it was.
+    """
     import bpy
 
     from autoscoop_blender.scene.spawn import spawn_results
@@ -137,4 +145,53 @@ def write_results(result: Result, out_dir: Path) -> None:
         blend = Path(tmp) / "result.blend"
         bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True, compress=True)
         files[out_dir / "result.blend"] = blend.read_bytes()
+    if render:
+        files[out_dir / "result_view.png"] = render_view_png(bpy.context.scene)
     write_files(files)
+
+
+def render_view_png(scene: Any) -> bytes:
+    """The PNG of ``render_view``, with Blender's render chatter (EGL warnings, "Saved:")
+    kept off the terminal unless the render fails; prints how long it took."""
+    from autoscoop_blender.scene.render_view import VIEW_SIZE, render_view
+
+    start = time.perf_counter()
+    try:
+        with _quiet_fds() as chatter:
+            png = render_view(scene)
+    except RuntimeError as e:
+        sys.stderr.write("".join(chatter))
+        raise AutoscoopError(
+            f"result_view.png: Blender could not render the view ({e}); run without --render"
+        ) from None
+    print(
+        f"result_view.png: {VIEW_SIZE[0]} x {VIEW_SIZE[1]} px, Workbench, "
+        f"{time.perf_counter() - start:.1f} s",
+        file=sys.stderr,
+    )
+    return png
+
+
+@contextmanager
+def _quiet_fds() -> Iterator[list[str]]:
+    """Send file descriptors 1 and 2 to a temporary file (Blender's C code writes to
+    them directly, past ``sys.stdout``); yields a list that holds what was written once
+    the block has ended."""
+    chatter: list[str] = []
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = [os.dup(1), os.dup(2)]
+    with tempfile.TemporaryFile() as sink:
+        os.dup2(sink.fileno(), 1)
+        os.dup2(sink.fileno(), 2)
+        try:
+            yield chatter
+        finally:
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os.dup2(saved[0], 1)
+            os.dup2(saved[1], 2)
+            for fd in saved:
+                os.close(fd)
+            sink.seek(0)
+            chatter.append(sink.read().decode("utf-8", "replace"))
