@@ -92,7 +92,10 @@ def build_parser() -> argparse.ArgumentParser:
     bld = sub.add_parser("build", help="build the extension zips (one per platform)")
     bld.add_argument("--out-dir", default="dist", help="default dist/")
     bld.add_argument(
-        "--platform", action="append", help="linux-x64, windows-x64, macos-arm64 (default all)"
+        "--platform",
+        action="append",
+        help="linux-x64, windows-x64, macos-arm64, macos-x64, windows-arm64 (default all "
+        "but windows-arm64)",
     )
     bld.add_argument("--wheel-cache", help="where downloaded wheels are kept (build/wheels/)")
 
