@@ -1,4 +1,6 @@
-"""Command-line parsing and dispatch; exit codes 0 (done), 2 (bad input), 130 (Ctrl-C).
+"""Command-line parsing and dispatch. Exit codes: 0 done (optimize: the goal reached),
+2 bad input, 3 optimize ended short of its goal (the result is still written), 130
+interrupted (Ctrl-C; the checkpoint keeps what was fixed).
 
 A user mistake (``AutoscoopError``) prints one line ``error: <object>: <problem>`` on
 stderr and writes nothing; warnings print as ``warning: ...`` and the job goes on.
@@ -76,6 +78,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     opt.add_argument("--out-dir", default="out", help="output folder (default out/)")
     opt.add_argument("--resume", action="store_true", help="go on from the checkpoint")
+    opt.add_argument(
+        "--repair",
+        action="store_true",
+        help="with --resume: keep the records before a damaged checkpoint line (the whole "
+        "file is kept as checkpoint.jsonl.damaged)",
+    )
     opt.add_argument(
         "--workers",
         type=int,

@@ -25,6 +25,8 @@ def open_blend(path: str | None) -> str:
             return bpy.data.filepath
         raise InputError("no scene given: pass a .blend file")
     p = Path(path)
+    if p.is_dir():
+        raise InputError(f"{path}: is a directory, not a .blend file")
     if not p.is_file():
         raise InputError(f"{path}: file not found")
     try:
@@ -69,6 +71,7 @@ def write_files(contents: dict[Path, str | bytes]) -> None:
         if path.is_dir():
             raise InputError(f"{path}: is a directory, not a file to write")
     staged: list[tuple[str, Path]] = []
+    path = next(iter(contents), Path("."))
     try:
         for path, data in contents.items():
             path.parent.mkdir(parents=True, exist_ok=True)
@@ -80,6 +83,8 @@ def write_files(contents: dict[Path, str | bytes]) -> None:
         for tmp, path in staged:
             os.replace(tmp, path)
         staged = []
+    except OSError as e:  # a folder the user cannot write, a full disk
+        raise InputError(f"{path}: cannot write it ({e.strerror or e})") from None
     finally:
         for tmp, _ in staged:
             Path(tmp).unlink(missing_ok=True)

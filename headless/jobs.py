@@ -31,6 +31,7 @@ from autoscoop_blender.io.reports import (
 from autoscoop_blender.io.sensor_file import read_sensors
 from headless.checkpoint import Checkpoint, checkpoint_header
 from headless.files import csv_text, json_text, load_scene, write_files
+from headless.lock import OutDirLock
 from headless.paths import SAMPLES
 from headless.progress import ProgressBar
 
@@ -38,6 +39,8 @@ from headless.progress import ProgressBar
 def coverage(args: argparse.Namespace) -> int:
     """``coverage``: evaluate a sensors file on a scene, write OUT.json (+ CSV)."""
     settings = CoverageSettings(**flag_values(CoverageSettings, vars(args))).validated()
+    if args.points_csv and Path(args.points_csv).resolve() == Path(args.out).resolve():
+        raise InputError(f"{args.out}: given as both --out and --points-csv; name two files")
     specs = read_sensors(args.sensors)
     scene, make_caster = load_scene(args.scene, max(s.model.range_m for s in specs))
     result = evaluate_layout(scene, make_caster(), specs, settings)
@@ -57,12 +60,27 @@ def coverage(args: argparse.Namespace) -> int:
     return 0
 
 
+EXIT_SHORT_OF_GOAL = 3
+"""optimize's exit code when the plan ends short of the coverage goal (result written)."""
+
+
 def optimize(args: argparse.Namespace) -> int:
-    """``optimize``: place sensors on a scene; result files in the output folder."""
+    """``optimize``: place sensors on a scene; result files in the output folder.
+
+    Every input is checked before the output folder is touched; the folder is locked
+    for the run (``headless.lock``); the checkpoint is replaced only once the first
+    sensor is fixed. Returns 0 when the goal was reached, ``EXIT_SHORT_OF_GOAL`` when
+    not, 130 when interrupted.
+    """
     settings, model = load_config(args.config)
     overrides = flag_values(OptimizeSettings, vars(args))
     settings = replace(settings, **{k: v for k, v in overrides.items() if v is not None})
     settings = settings.validated()
+    workers = default_workers() if args.workers is None else args.workers
+    if workers < 1:
+        raise InputError(f"--workers {workers}: must be at least 1")
+    if args.repair and not args.resume:
+        raise InputError("--repair: only with --resume (it repairs the checkpoint resumed)")
     out_dir = Path(args.out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"{out_dir}: exists and is not a folder")
@@ -70,39 +88,48 @@ def optimize(args: argparse.Namespace) -> int:
     scene, make_caster = load_scene(args.scene or default_scene(), model.range_m)
     for w in scene.warnings:
         print(f"warning: {w}", file=sys.stderr)
-    checkpoint = Checkpoint(out_dir, checkpoint_header(scene, model, settings))
-    resume = checkpoint.resume() if args.resume else []
-    if not args.resume:
-        checkpoint.start()
-    workers = default_workers() if args.workers is None else args.workers
-    if workers < 1:
-        raise InputError(f"--workers {workers}: must be at least 1")
-    run = Run(
-        scene, make_caster, model, settings, resume, on_fixed=checkpoint.append, workers=workers
-    )
-    if resume:
-        print(f"resuming after {len(resume)} fixed sensor(s)", file=sys.stderr)
-    bar = ProgressBar()
-    try:
-        for progress in run.steps():
-            bar.update(progress)
-    except KeyboardInterrupt:
-        run.close()
+    with OutDirLock(out_dir) as lock:
+        if lock.stale_pid is not None:
+            print(
+                f"note: {out_dir}: took over the lock of run {lock.stale_pid}, which has ended",
+                file=sys.stderr,
+            )
+        checkpoint = Checkpoint(out_dir, checkpoint_header(scene, model, settings))
+        resume = checkpoint.resume(repair=args.repair) if args.resume else []
+        run = Run(
+            scene, make_caster, model, settings, resume, on_fixed=checkpoint.append,
+            workers=workers,
+        )  # fmt: skip
+        if resume:
+            print(f"resuming after {len(resume)} fixed sensor(s)", file=sys.stderr)
+        bar = ProgressBar()
+        try:
+            for progress in run.steps():
+                bar.update(progress)
+        except KeyboardInterrupt:
+            run.close()
+            bar.close()
+            print(
+                f"interrupted: {len(run.sensors)} sensor(s) kept in {checkpoint.path}; "
+                "run again with --resume to go on",
+                file=sys.stderr,
+            )
+            return 130
         bar.close()
-        print(
-            f"interrupted: {len(run.sensors)} sensor(s) kept in {checkpoint.path}; "
-            "run again with --resume to go on",
-            file=sys.stderr,
-        )
-        return 130
-    bar.close()
-    result = run.result()
-    write_results(result, out_dir, render=args.render)
+        result = run.result()
+        write_results(result, out_dir, render=args.render)
     m = result.metrics
     print(
         f"{m['sensors']} sensors on {m['masts']} masts cover {m['coverage_fraction']:.2%} "
-        f"in {m['wall_s']:.1f} s ({result.stop_reason}) -> {out_dir}"
+        f"in {m['wall_s']:.1f} s -> {out_dir}\n{result.stop_reason}"
     )
+    if m["coverage_fraction"] < settings.rho:
+        print(
+            f"short of the goal: {m['coverage_fraction']:.2%} of {settings.rho:.0%} covered "
+            f"(exit code {EXIT_SHORT_OF_GOAL}; the result is written)",
+            file=sys.stderr,
+        )
+        return EXIT_SHORT_OF_GOAL
     return 0
 
 

@@ -1,5 +1,7 @@
-"""Faults from outside: the main process killed outright, two runs into one folder."""
+"""Faults from outside and their traces: the main process killed outright, two runs into
+one folder, a damaged checkpoint, a rejected command, a run short of its goal."""
 
+import json
 import os
 import signal
 import subprocess
@@ -11,7 +13,7 @@ import pytest
 
 from autoscoop_blender.core.errors import InputError
 from headless.lock import OutDirLock
-from tests.cli.conftest import SAMPLES
+from tests.cli.conftest import SAMPLES, run_headless
 from tests.conftest import ROOT
 
 FLAT = SAMPLES / "flat_wall.blend"
@@ -101,3 +103,99 @@ def test_the_lock_of_a_killed_run_is_taken_over(tmp_path):
             assert lock.stale_pid == holder.pid
     finally:
         holder.kill()
+
+
+SMALL = 'optimizer = "es"\nrho = 0.6\n[es]\nmu = 8\nlam = 4\nmax_epochs = 4\n'
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory):
+    """A small ES run that fixed several sensors: (config, out dir, checkpoint bytes)."""
+    tmp = tmp_path_factory.mktemp("finished")
+    cfg = tmp / "small.toml"
+    cfg.write_text(SMALL)
+    out = tmp / "run"
+    code, _, stderr = run_headless("optimize", FLAT, "--config", cfg, "--out-dir", out)
+    assert code == 0, stderr
+    lines = (out / "checkpoint.jsonl").read_bytes().splitlines(keepends=True)
+    assert len(lines) >= 4
+    return cfg, out, (out / "checkpoint.jsonl").read_bytes()
+
+
+def copy_run(finished, tmp_path) -> Path:
+    _, out, data = finished
+    mine = tmp_path / "run"
+    mine.mkdir()
+    (mine / "checkpoint.jsonl").write_bytes(data)
+    return mine
+
+
+@pytest.mark.parametrize(
+    "bad, message",
+    [
+        (["--workers", "0"], "--workers 0: must be at least 1"),
+        (["--seed", "-1"], "seed (--seed) = -1 is out of range"),
+        (["--config", "MU"], "mu must be an integer, got 40.5"),
+        (["--repair"], "--repair: only with --resume"),
+    ],
+)
+def test_a_rejected_command_leaves_the_checkpoint_as_it_was(finished, tmp_path, bad, message):
+    out = copy_run(finished, tmp_path)
+    mu = tmp_path / "mu.toml"
+    mu.write_text('optimizer = "es"\n[es]\nmu = 40.5\n')
+    args = [str(mu) if a == "MU" else a for a in bad]
+    code, _, stderr = run_headless("optimize", FLAT, "--out-dir", out, *args)
+    assert code == 2 and message in stderr and len(stderr.strip().splitlines()) == 1, stderr
+    assert (out / "checkpoint.jsonl").read_bytes() == finished[2]
+    assert sorted(p.name for p in out.iterdir()) == ["checkpoint.jsonl"]
+
+
+def test_a_damaged_checkpoint_stops_the_resume_until_repair_is_asked(finished, tmp_path):
+    cfg, _, data = finished
+    out = copy_run(finished, tmp_path)
+    lines = data.splitlines(keepends=True)
+    lines[2] = lines[2].replace(b'"epochs": ', b'"epochs": 1')  # sensor 2's record
+    damaged = b"".join(lines)
+    (out / "checkpoint.jsonl").write_bytes(damaged)
+    code, _, stderr = run_headless("optimize", FLAT, "--config", cfg, "--out-dir", out, "--resume")
+    assert code == 2 and "line 3 is damaged" in stderr and "--repair" in stderr, stderr
+    assert (out / "checkpoint.jsonl").read_bytes() == damaged  # left exactly as it was
+    assert not (out / "result.json").exists()
+
+    code, _, stderr = run_headless(
+        "optimize", FLAT, "--config", cfg, "--out-dir", out, "--resume", "--repair"
+    )
+    assert code == 0 and "resuming after 1 fixed sensor" in stderr, stderr
+    assert (out / "checkpoint.jsonl.damaged").read_bytes() == damaged
+    # Resumed from sensor 1, it reaches the same answer as the run that was not damaged.
+    assert (out / "sensors.csv").read_text() == (finished[1] / "sensors.csv").read_text()
+    assert len((out / "checkpoint.jsonl").read_bytes().splitlines()) == len(lines)
+
+
+def test_a_second_run_into_a_busy_folder_is_refused(finished, tmp_path):
+    cfg, _, _ = finished
+    out = tmp_path / "busy"
+    first = start_optimize(out)
+    try:
+        assert wait_for(lambda: (out / ".autoscoop.lock").exists()
+                        and (out / ".autoscoop.lock").read_text() == str(first.pid), 120)  # fmt: skip
+        code, _, stderr = run_headless("optimize", FLAT, "--config", cfg, "--out-dir", out)
+        assert code == 2, stderr
+        assert f"another AutoSCOOP run (process {first.pid}) is writing there" in stderr
+    finally:
+        first.kill()
+        first.wait(10)
+    # Killed, its lock is taken over.
+    code, _, stderr = run_headless("optimize", FLAT, "--config", cfg, "--out-dir", out)
+    assert code == 0 and f"took over the lock of run {first.pid}" in stderr, stderr
+
+
+def test_a_run_short_of_its_goal_says_so_in_its_exit_code(tmp_path):
+    cfg = tmp_path / "capped.toml"
+    cfg.write_text("max_sensors = 1\n" + SMALL)
+    code, stdout, stderr = run_headless("optimize", FLAT, "--config", cfg, "--out-dir", tmp_path / "o")
+    result = json.loads((tmp_path / "o" / "result.json").read_text())
+    assert code == 3 and result["metrics"]["sensors"] == 1
+    assert result["metrics"]["coverage_fraction"] < 0.6
+    assert "short of the goal" in stderr and "exit code 3" in stderr
+    assert "Stopped short of the goal at the sensor limit (max_sensors = 1)." in stdout

@@ -371,7 +371,7 @@ def test_stopping_early_keeps_the_best_plan_and_a_proven_bound():
             assert run.stop_early()
     res = run.result()
     m = res.metrics
-    assert "stopped early" in res.stop_reason and m["coverage_fraction"] >= 0.9
+    assert "Stopped early" in res.stop_reason and m["coverage_fraction"] >= 0.9
     assert 0 <= m["lower_bound"] <= m["objective"]
     full = Run(scene, box_caster(), PAPER_CAMERA, LP).result().metrics
     assert m["lower_bound"] <= full["lower_bound"] and full["objective"] <= m["objective"]

@@ -55,7 +55,7 @@ def poses(result):
 def test_reaches_the_goal_and_reports_consistent_metrics():
     _, res = run()
     m = res.metrics
-    assert res.stop_reason.startswith("reached rho")
+    assert res.stop_reason.startswith("Reached the goal")
     assert m["coverage_fraction"] >= 0.9
     assert m["coverage_fraction"] == pytest.approx((res.n_covered > 0).mean())
     assert m["sensors"] == len(res.sensors) and m["masts"] == len(res.masts)
@@ -96,7 +96,7 @@ def test_resume_goes_on_exactly_as_before():
 def test_an_unseeable_target_stops_the_run_and_is_named():
     far = Area("Target_Far", shapely.box(400, 400, 430, 420))  # 600 m away
     _, res = run(road_scene([far]), replace(FAST, rho=0.97))
-    assert "cannot be seen" in res.stop_reason
+    assert "cannot be reached" in res.stop_reason
     named = [p for p in res.uncovered if p["target"] == "Target_Far"]
     assert len(named) == 1 and named[0]["m2"] == pytest.approx(600.0)
     assert named[0]["x"] == pytest.approx(415.0) and named[0]["y"] == pytest.approx(410.0)
@@ -212,7 +212,7 @@ def test_greedy_reaches_the_goal_with_no_more_sensors_than_the_es():
     greedy_settings = replace(FAST, optimizer="greedy")
     _, es = run()
     _, gr = run(settings=greedy_settings)
-    assert gr.metrics["coverage_fraction"] >= 0.9 and gr.stop_reason.startswith("reached rho")
+    assert gr.metrics["coverage_fraction"] >= 0.9 and gr.stop_reason.startswith("Reached the goal")
     assert gr.metrics["sensors"] <= es.metrics["sensors"]
     # Each fixed sensor's recorded gain is what it added, in order: they sum to the
     # points covered before masts were formed (grouping here moves no sensor).

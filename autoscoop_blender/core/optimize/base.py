@@ -61,8 +61,9 @@ class Progress:
 
     @property
     def fraction(self) -> float:
-        """Progress towards the goal in [0, 1]."""
-        return 1.0 if self.phase == "done" else min(1.0, self.coverage / self.rho)
+        """Progress towards the goal in [0, 1]: coverage / rho, so a run that ends short
+        of its goal ends with the bar short of full."""
+        return min(1.0, self.coverage / self.rho)
 
 
 @dataclass(frozen=True)
@@ -93,6 +94,34 @@ class PlanBound:
         if objective == "masts":
             return float(masts)
         return max(self.cost_lp, mast_cost * masts + sensor_cost * self.sensors)
+
+
+class StopReason:
+    """Why an optimizer stopped, as short sentences a planner reads in the report."""
+
+    @staticmethod
+    def reached(rho: float, early: bool = False) -> str:
+        text = f"Reached the goal: {rho:.0%} of the target is covered."
+        return text + (" Stopped early, with the best plan found by then." if early else "")
+
+    @staticmethod
+    def sensor_limit(max_sensors: int) -> str:
+        return f"Stopped short of the goal at the sensor limit (max_sensors = {max_sensors})."
+
+    @staticmethod
+    def out_of_sight(from_where: str) -> str:
+        return (
+            f"The goal cannot be reached: no {from_where} sees the rest of the target "
+            "(line of sight, range, density or pitch limits). The plan covers all that can "
+            "be seen."
+        )
+
+    @staticmethod
+    def gave_up(searches: int) -> str:
+        return (
+            f"Stopped short of the goal: {searches} searches in a row found nothing new. "
+            "Some of the rest may still be visible; try the lp optimizer."
+        )
 
 
 @dataclass

@@ -47,7 +47,7 @@ from ..coverage.reference import reference_footprint_m2
 from ..model.sensors import SensorPose
 from ..problem import Problem, SearchSpace
 from ..settings import ESParams
-from .base import FixedSensor, Progress, Solution
+from .base import FixedSensor, Progress, Solution, StopReason
 from .fitness import Fitness, FixedSensors, fitness
 from .parallel import FixedMark, WorkerPool
 
@@ -183,10 +183,10 @@ class EvolutionStrategy:
         try:
             while True:
                 if problem.reached(solution.n_covered):
-                    solution.stop_reason = f"reached rho = {s.rho:.0%} of the target"
+                    solution.stop_reason = StopReason.reached(s.rho)
                     break
                 if len(solution.sensors) >= problem.max_sensors:
-                    solution.stop_reason = f"stopped at max_sensors = {problem.max_sensors}"
+                    solution.stop_reason = StopReason.sensor_limit(problem.max_sensors)
                     break
                 found = yield from self._search(None)
                 if found[2].new_points < min_gain:
@@ -198,9 +198,8 @@ class EvolutionStrategy:
                         aimed = self._gap_population(coarse=False)
                     if aimed is None:
                         if found[2].new_points == 0:
-                            solution.stop_reason = (
-                                "the rest of the target cannot be seen from any position in "
-                                "the sensor areas (line of sight, range, density, pitch limits)"
+                            solution.stop_reason = StopReason.out_of_sight(
+                                "position in the sensor areas"
                             )
                             break
                     else:
@@ -210,10 +209,7 @@ class EvolutionStrategy:
                 if fit.new_points == 0:
                     stale += 1
                     if stale >= s.patience:
-                        solution.stop_reason = (
-                            f"{stale} searches in a row added nothing, though parts of the "
-                            "rest may be within reach of some position (an upper bound)"
-                        )
+                        solution.stop_reason = StopReason.gave_up(stale)
                         break
                     continue
                 stale = 0

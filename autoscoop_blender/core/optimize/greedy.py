@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..problem import Problem
-from .base import Progress, Solution, candidates_of, fix_candidate
+from .base import Progress, Solution, StopReason, candidates_of, fix_candidate
 
 # A candidate on a mast already used wins against a new mast that adds up to this
 # fraction more (0: only on ties).
@@ -42,7 +42,7 @@ class Greedy:
         rho = problem.rho
         cands = yield from candidates_of(problem, solution)
         if len(cands) == 0:
-            solution.stop_reason = "no candidate pose covers any target point"
+            solution.stop_reason = StopReason.out_of_sight("candidate pose")
             return solution
         index = {(float(x), float(y)): i for i, (x, y) in enumerate(cands.positions)}
         used = np.zeros(len(cands.positions), dtype=bool)
@@ -53,13 +53,10 @@ class Greedy:
         gains = cands.matrix @ (~solution.covered).astype(np.float32)
         while not problem.reached(solution.n_covered):
             if len(solution.sensors) >= problem.max_sensors:
-                solution.stop_reason = f"stopped at max_sensors = {problem.max_sensors}"
+                solution.stop_reason = StopReason.sensor_limit(problem.max_sensors)
                 return solution
             if float(gains.max()) <= 0:
-                solution.stop_reason = (
-                    "no candidate pose adds coverage; the rest of the target cannot be seen "
-                    "from the candidates (positions x orientations)"
-                )
+                solution.stop_reason = StopReason.out_of_sight("candidate pose")
                 return solution
             pick = pick_candidate(gains, used[cands.position])
             sensor = fix_candidate(problem, solution, cands, pick)
@@ -67,5 +64,5 @@ class Greedy:
             gains -= np.asarray(by_point[:, sensor.newly].sum(axis=1)).ravel()
             used[cands.position[pick]] = True
             yield solution.progress("fixed", rho, fixed=sensor)
-        solution.stop_reason = f"reached rho = {rho:.0%} of the target"
+        solution.stop_reason = StopReason.reached(rho)
         return solution

@@ -38,7 +38,7 @@ from numpy.typing import NDArray
 
 from ..candidates import CandidateSet
 from ..problem import Problem
-from .base import PlanBound, Progress, Solution, candidates_of, fix_candidate
+from .base import PlanBound, Progress, Solution, StopReason, candidates_of, fix_candidate
 from .bound import (
     LPProgress,
     LPSolution,
@@ -352,9 +352,9 @@ class LPPlanner:
         inst = instance(cands, problem, solution.covered)
         if problem.reached(solution.n_covered) or inst.goal <= 0:
             solution.stop_reason = (
-                f"reached rho = {problem.rho:.0%} of the target"
+                StopReason.reached(problem.rho)
                 if problem.reached(solution.n_covered)
-                else "no candidate sees any target point left"
+                else StopReason.out_of_sight("candidate pose")
             )
             return solution
         chosen, bound = yield from prove_and_plan(
@@ -365,19 +365,13 @@ class LPPlanner:
             if problem.reached(solution.n_covered):
                 break
             if len(solution.sensors) >= problem.max_sensors:
-                solution.stop_reason = f"stopped at max_sensors = {problem.max_sensors}"
+                solution.stop_reason = StopReason.sensor_limit(problem.max_sensors)
                 return solution
             sensor = fix_candidate(problem, solution, cands, c)
             yield solution.progress("fixed", problem.rho, fixed=sensor)
         late = self.stop.is_set() or (deadline is not None and time.perf_counter() > deadline)
         if problem.reached(solution.n_covered):
-            solution.stop_reason = f"reached rho = {problem.rho:.0%} of the target" + (
-                " (stopped early: the plan is the best found by then)" if late else ""
-            )
+            solution.stop_reason = StopReason.reached(problem.rho, early=late)
         else:
-            solution.stop_reason = (
-                "no plan on the candidate set reaches the goal: the rest of the target "
-                "cannot be seen from the candidates (positions x orientations); the plan "
-                "covers all that can be"
-            )
+            solution.stop_reason = StopReason.out_of_sight("candidate pose")
         return solution
