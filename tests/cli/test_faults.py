@@ -199,3 +199,17 @@ def test_a_run_short_of_its_goal_says_so_in_its_exit_code(tmp_path):
     assert result["metrics"]["coverage_fraction"] < 0.6
     assert "short of the goal" in stderr and "exit code 3" in stderr
     assert "Stopped short of the goal at the sensor limit (max_sensors = 1)." in stdout
+
+
+@pytest.mark.parametrize("where", ["/proc/autoscoop_out", "/sys/autoscoop_out"])
+def test_an_output_folder_nobody_can_write_is_one_line(tmp_path, where):
+    """(Read-only even for root, so the test holds wherever it runs.)"""
+    sensors = SAMPLES / "two_routes_sensors.json"
+    scene = SAMPLES / "two_routes.blend"
+    code, _, stderr = run_headless("coverage", scene, "--sensors", sensors, "--out",
+                                   f"{where}/c.json")  # fmt: skip
+    assert code == 2 and stderr.startswith(f"error: {where}/c.json: cannot write it"), stderr
+    assert len(stderr.strip().splitlines()) == 1 and "Traceback" not in stderr
+    code, _, stderr = run_headless("optimize", FLAT, "--out-dir", where)
+    assert code == 2 and stderr.strip().splitlines()[-1].startswith(f"error: {where}"), stderr
+    assert "Traceback" not in stderr
