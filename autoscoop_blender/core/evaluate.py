@@ -41,7 +41,8 @@ def evaluate_layout(
     """Coverage of each sensor and of their union, with footprints and visibility.
 
     specs: world metres (see ``SensorSpec`` for how each height is found). Warnings
-    (in ``Result.warnings``): a sensor outside every sensor area, or inside an occluder.
+    (in ``Result.warnings``): a sensor outside every sensor area, inside an occluder,
+    or mounted at or above its range.
     """
     settings = settings.validated()
     t0 = time.perf_counter()
@@ -71,6 +72,11 @@ def evaluate_layout(
             height = area.height_m
         if height is None:
             height = model.mount_height_m
+        if height >= model.range_m:
+            warnings.append(
+                f"sensor {k} at ({spec.x:g}, {spec.y:g}) is mounted {height:g} m high, not "
+                f"below its range of {model.range_m:g} m: it cannot reach the ground under it"
+            )
         pose = place(grid, x, y, height, spec.pitch_deg, spec.yaw_deg)
         if inside_solid(caster, pose.position)[0]:
             warnings.append(

@@ -7,67 +7,117 @@
 ``x``, ``y`` are world metres; ``height_m`` is the mast height above the ground under
 the sensor (default: the sensor area's ``height_m`` if it stands in one that has it,
 else the model's mount height); angles in degrees as in ``sensors``.
+
+Every number must be finite: ``x``, ``y`` within ``MAX_COORD_M`` (10,000 km) of the
+origin, ``height_m`` in [0, ``MAX_RANGE_M``], ``pitch_deg`` in [-90, 90]. Any other
+key is refused, naming the closest known one.
 """
 
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 from typing import Any
 
 from ..core.errors import InputError
-from ..core.model.sensors import SensorModel, SensorSpec
+from ..core.model.sensors import (
+    MAX_COORD_M,
+    MAX_RANGE_M,
+    SensorModel,
+    SensorSpec,
+    check_keys,
+    number,
+)
+from .reports import RESULT_SCHEMA
+
+TOP_KEYS = ("model", "sensors")
+SENSOR_KEYS = ("x", "y", "height_m", "pitch_deg", "yaw_deg", "model")
+# A result.json (``reports.result_dict``) is a sensors file too: besides ``model`` and
+# ``sensors`` it carries these keys, and these in each sensor, which are not read.
+RESULT_TOP_KEYS = (
+    "schema", "scene", "optimizer", "method", "seed", "settings", "versions", "metrics",
+    "stop_reason", "uncovered", "masts", "origin",
+)  # fmt: skip
+RESULT_SENSOR_KEYS = (
+    "n", "z", "mast", "fitness", "epochs", "target_covered_m2", "footprint_m2",
+)  # fmt: skip
 
 
 def read_sensors(path: str | Path) -> list[SensorSpec]:
     """Parse a sensors file; InputError naming the file and entry for any fault."""
     p = Path(path)
+    if p.is_dir():
+        raise InputError(f"{p}: is a directory, not a sensors file")
     if not p.is_file():
         raise InputError(f"{p}: sensors file not found")
     try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+        text = p.read_text(encoding="utf-8")
+    except OSError as e:
+        raise InputError(f"{p}: cannot read the sensors file ({e.strerror})") from None
+    except UnicodeDecodeError as e:
         raise InputError(f"{p.name}: not valid JSON ({e})") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as e:
+        raise InputError(f"{p.name}: not valid JSON ({e})") from None
+    except ValueError as e:  # an integer of more than 4300 digits
+        raise InputError(f"{p.name}: not valid JSON ({str(e).split(';')[0]})") from None
+    except RecursionError:
+        raise InputError(f"{p.name}: not valid JSON (nested too deeply)") from None
     return parse_sensors(data, p.name)
 
 
 def parse_sensors(data: Any, label: str) -> list[SensorSpec]:
-    """Sensors from already-decoded JSON ``data``; ``label`` names it in errors."""
+    """Sensors from already-decoded JSON ``data``; ``label`` names it in errors.
+
+    Unknown keys are refused with the closest known one (a misspelt ``heigth_m``
+    would otherwise be ignored); a result.json's own keys are allowed in one.
+    """
     if not isinstance(data, dict):
         raise InputError(f"{label}: expected an object with 'model' and 'sensors'")
+    is_result = data.get("schema") == RESULT_SCHEMA
+    check_keys(data, TOP_KEYS + RESULT_TOP_KEYS if is_result else TOP_KEYS, label, "top-level")
     items = data.get("sensors")
     if not isinstance(items, list) or not items:
         raise InputError(f"{label}: 'sensors' must be a non-empty list")
     default = SensorModel.from_spec(data["model"], f"{label}: model") if "model" in data else None
+    sensor_keys = SENSOR_KEYS + RESULT_SENSOR_KEYS if is_result else SENSOR_KEYS
     specs = []
     for k, item in enumerate(items, start=1):
         where = f"{label}: sensor {k}"
         if not isinstance(item, dict):
             raise InputError(f"{where}: expected an object with x, y, pitch_deg, yaw_deg")
+        check_keys(item, sensor_keys, where, "sensor")
         if "model" in item:
             model = SensorModel.from_spec(item["model"], f"{where}: model")
         elif default is not None:
             model = default
         else:
             raise InputError(f"{where}: no model (give 'model' at the top or per sensor)")
-        x, y = _number(item, "x", where), _number(item, "y", where)
-        pitch, yaw = _number(item, "pitch_deg", where), _number(item, "yaw_deg", where)
+        x, y = _coordinate(item, "x", where), _coordinate(item, "y", where)
+        pitch = number(_get(item, "pitch_deg", where), "pitch_deg", where)
         if not -90.0 <= pitch <= 90.0:
             raise InputError(f"{where}: pitch_deg {pitch} not in [-90, 90]")
-        height = _number(item, "height_m", where) if "height_m" in item else None
-        if height is not None and height < 0:
-            raise InputError(f"{where}: height_m {height} must be >= 0")
-        specs.append(SensorSpec(model, x, y, height, pitch, yaw % 360.0))
+        yaw = number(_get(item, "yaw_deg", where), "yaw_deg", where) % 360.0
+        height = None
+        if "height_m" in item:
+            height = number(
+                item["height_m"], "height_m", where, 0.0, MAX_RANGE_M,
+                " m (the mast height; no sensor reaches the ground from higher)",
+            )  # fmt: skip
+        # -1e-20 % 360 rounds to 360.0: keep yaw in [0, 360).
+        specs.append(SensorSpec(model, x, y, height, pitch, 0.0 if yaw >= 360.0 else yaw))
     return specs
 
 
-def _number(item: dict[str, Any], key: str, where: str) -> float:
+def _get(item: dict[str, Any], key: str, where: str) -> Any:
     if key not in item:
         raise InputError(f"{where}: missing {key}")
-    v = item[key]
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise InputError(f"{where}: {key} must be a number, got {v!r}")
-    if not math.isfinite(v):
-        raise InputError(f"{where}: {key} is {v}")
-    return float(v)
+    return item[key]
+
+
+def _coordinate(item: dict[str, Any], key: str, where: str) -> float:
+    return number(
+        _get(item, key, where), key, where, -MAX_COORD_M, MAX_COORD_M,
+        " m (world coordinates within 10,000 km of the origin)",
+    )  # fmt: skip

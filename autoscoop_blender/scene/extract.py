@@ -15,15 +15,31 @@ from pathlib import Path
 
 import bpy
 import numpy as np
+from mathutils import Vector
+from mathutils.bvhtree import BVHTree
 from numpy.typing import NDArray
 
 from .. import names
 from ..core.errors import SceneContractError
 from ..core.model.scene import Area, SceneModel, area_from_rings, choose_origin
+from ..core.model.sensors import MAX_COORD_M, MAX_RANGE_M
 
 F64 = NDArray[np.float64]
 
 _GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT"}
+
+# An area curve whose points lie in one plane counts as flat (in the XY plane) up to
+# this tilt. A curve that follows the terrain (points at different heights: not in one
+# plane, or on a sloping surface) is drawn in plan and is not tilted; the core refuses
+# it only beyond 45 deg.
+MAX_FLAT_TILT_DEG = 1.0
+# Points within this fraction of a ring's size (plus float32 rounding of Blender's
+# coordinates) of its best-fit plane lie in that plane. Terrain a curve was drawn on
+# is rougher; a curve rotated out of the XY plane is exact up to that rounding.
+_PLANE_TOL = 1e-4
+# A ring in one sloping plane follows the terrain when all its points lie this close
+# to an occluder's surface (snapped onto a ramp, or drawn just above it to stay seen).
+_ON_SURFACE_M = 0.25
 
 
 def area_role(obj: bpy.types.Object) -> str | None:
@@ -100,6 +116,13 @@ def extract_scene(
 
     vertices, faces, occluders, ground = occluder_mesh(depsgraph, results)
     vertices = vertices - origin
+    # Tilted areas last: whether a ring follows the terrain depends on the occluders.
+    surface = _Surface(vertices, faces)
+    for obj, rings in target_rings + sensor_rings:
+        for k, ring in enumerate(rings):
+            # Blender keeps coordinates in float32: allow for its rounding of world ones.
+            rounding = 1e-6 * float(np.abs(ring).max())
+            _check_flat(_ring_label(obj, k), ring - origin, surface, rounding)
     warnings: list[str] = []
     if not occluders:
         warnings.append(
@@ -124,10 +147,12 @@ def _area(obj: bpy.types.Object, rings: list[F64], origin: F64, with_height: boo
     height = None
     if with_height and names.HEIGHT_PROP in obj:
         raw = obj[names.HEIGHT_PROP]
-        if not isinstance(raw, (int, float)) or not math.isfinite(raw) or raw < 0:
+        ok = isinstance(raw, (int, float)) and not isinstance(raw, bool)
+        if not ok or not 0 <= raw <= MAX_RANGE_M:  # False for nan
+            shown = repr(raw) if ok else type(raw).__name__
             raise SceneContractError(
-                f"{obj.name}: custom property {names.HEIGHT_PROP} must be a number >= 0, "
-                f"got {raw!r}"
+                f"{obj.name}: custom property {names.HEIGHT_PROP} must be a number in "
+                f"[0, {MAX_RANGE_M:g}] m (the mast height), got {shown}"
             )
         height = float(raw)
     z = float(np.mean(np.concatenate(local)[:, 2]))
@@ -138,26 +163,117 @@ def curve_rings(obj: bpy.types.Object) -> list[F64]:
     """World-space rings (K, 3) of a curve object, one per spline.
 
     POLY splines give their points; BEZIER splines are sampled with the curve's
-    resolution as Blender draws them. Open splines and NURBS raise SceneContractError.
+    resolution as Blender draws them. SceneContractError naming the curve (and spline)
+    for no splines, open splines, NURBS, and coordinates that are not finite or farther
+    than ``MAX_COORD_M`` from the origin. (Whether a ring is tilted depends on the
+    occluders too: ``extract_scene`` checks that.)
     """
     mat = np.array(obj.matrix_world)
+    splines = obj.data.splines
+    if len(splines) == 0:
+        raise SceneContractError(f"{obj.name}: curve has no splines")
     rings = []
-    for k, spline in enumerate(obj.data.splines):
-        label = obj.name if len(obj.data.splines) == 1 else f"{obj.name} (spline {k + 1})"
+    for k, spline in enumerate(splines):
+        label = _ring_label(obj, k)
         if spline.type == "POLY":
-            pts = np.array([p.co[:3] for p in spline.points], dtype=float)
+            pts = np.array([p.co[:3] for p in spline.points], dtype=float).reshape(-1, 3)
+            _check_coordinates(label, pts, "curve point")
         elif spline.type == "BEZIER":
+            bp = spline.bezier_points
+            ctrl = [(*p.co, *p.handle_left, *p.handle_right) for p in bp]
+            ctrl_pts = np.array(ctrl, dtype=float).reshape(-1, 3)
+            _check_coordinates(label, ctrl_pts, "Bezier point or handle")
             pts = _bezier_points(spline)
         else:
             raise SceneContractError(
                 f"{label}: {spline.type} splines are not supported; convert the curve "
                 "to Poly or Bezier"
             )
+        world = pts @ mat[:3, :3].T + mat[:3, 3]
+        _check_coordinates(label, world, "curve point, placed by the object's transform,")
         closed_by_points = len(pts) > 2 and np.allclose(pts[0], pts[-1])
         if not (spline.use_cyclic_u or closed_by_points):
             raise SceneContractError(f"{label}: curve is open; close it (Toggle Cyclic, Alt+C)")
-        rings.append(pts @ mat[:3, :3].T + mat[:3, 3])
+        rings.append(world)
     return rings
+
+
+def _ring_label(obj: bpy.types.Object, k: int) -> str:
+    """How errors name spline ``k`` of a curve object."""
+    return obj.name if len(obj.data.splines) == 1 else f"{obj.name} (spline {k + 1})"
+
+
+def _check_coordinates(label: str, pts: F64, what: str) -> None:
+    """SceneContractError for a point (N, 3) that is not finite or lies farther than
+    ``MAX_COORD_M`` from the origin in any axis."""
+    finite = np.isfinite(pts).all(axis=1)
+    if not finite.all():
+        p = pts[~finite][0]
+        raise SceneContractError(f"{label}: a {what} is not finite ({p[0]:g}, {p[1]:g}, {p[2]:g})")
+    far = (np.abs(pts) > MAX_COORD_M).any(axis=1)
+    if far.any():
+        p = pts[far][0]
+        raise SceneContractError(
+            f"{label}: a {what} ({p[0]:g}, {p[1]:g}, {p[2]:g}) lies beyond "
+            f"{MAX_COORD_M:g} m (10,000 km) from the origin"
+        )
+
+
+class _Surface:
+    """The occluders' surfaces (local metres), asked whether points lie on them; the
+    BVHTree is built on the first question only (rarely asked: see ``_check_flat``)."""
+
+    def __init__(self, vertices: F64, faces: NDArray[np.int32]) -> None:
+        self.vertices, self.faces = vertices, faces
+        self._tree: BVHTree | None = None
+
+    def holds(self, pts: F64, tol: float) -> bool:
+        """Whether every point (N, 3) lies within ``tol`` m of an occluder's surface."""
+        if len(self.faces) == 0:
+            return False
+        if self._tree is None:
+            self._tree = BVHTree.FromPolygons(
+                self.vertices.tolist(), self.faces.tolist(), all_triangles=True
+            )
+        near = self._tree.find_nearest
+        return all(near(Vector(p), tol)[0] is not None for p in pts.tolist())
+
+
+def _check_flat(label: str, pts: F64, surface: _Surface, rounding: float = 0.0) -> None:
+    """SceneContractError when a ring is tilted: its points lie in one plane inclined
+    more than ``MAX_FLAT_TILT_DEG`` and not on the occluders' surfaces. Such a curve was
+    drawn flat and turned out of the XY plane, and its area in plan would shrink by
+    cos(tilt) unnoticed.
+
+    Not tilted: a ring whose points are not in one plane, or lie on the terrain (within
+    ``_ON_SURFACE_M``), follows the terrain; its plan shape is what counts. Rings too
+    short or on a line are left to the core ("at least 3 points", "no area").
+    ``rounding``: how far (m) float32 storage may have moved the points.
+    """
+    if len(pts) < 3:
+        return
+    centred = pts - pts.mean(axis=0)
+    _, sv, vt = np.linalg.svd(centred, full_matrices=False)
+    if len(sv) < 3 or sv[1] <= 1e-9 * max(sv[0], 1e-300):
+        return  # on a line: "encloses no area"
+    normal = vt[2]
+    tilt = math.degrees(math.acos(min(1.0, abs(float(normal[2])))))
+    if tilt <= MAX_FLAT_TILT_DEG:
+        return
+    size = float(np.ptp(pts, axis=0).max())
+    tol = _PLANE_TOL * size + rounding
+    if float(np.abs(centred @ normal).max()) > tol:
+        return  # not in one plane: follows the terrain
+    if surface.holds(pts, _ON_SURFACE_M):
+        return  # on a sloping surface: follows the terrain
+    x, y = pts[:, 0], pts[:, 1]
+    plan = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+    drawn = plan / max(abs(float(normal[2])), 1e-12)
+    raise SceneContractError(
+        f"{label}: curve is not in the XY plane (tilted {tilt:.1f} deg, flat is within "
+        f"{MAX_FLAT_TILT_DEG:g} deg): its {drawn:,.0f} m^2 would count as {plan:,.0f} m^2 "
+        "in plan; flatten it (scale Z to 0) or clear the object's X/Y rotation"
+    )
 
 
 def _bezier_points(spline: bpy.types.Spline) -> F64:
@@ -204,6 +320,8 @@ def occluder_mesh(
         v, f = _triangles(inst.object, np.array(inst.matrix_world))
         if len(f) == 0:
             continue
+        if not (np.isfinite(v).all() and np.abs(v).max() <= MAX_COORD_M):
+            _check_occluder(orig.name, v[np.unique(f)])  # loose vertices do not count
         verts.append(v)
         faces.append(f + offset)
         ground.append(np.full(len(f), not orig.get(names.OVERHANG_PROP, False)))
@@ -218,6 +336,23 @@ def occluder_mesh(
         used,
         np.concatenate(ground),
     )
+
+
+def _check_occluder(name: str, v: F64) -> None:
+    """SceneContractError for an occluder with a vertex (of a face) that is not finite
+    or lies beyond ``MAX_COORD_M``: the ray caster would give nonsense."""
+    if not np.isfinite(v).all():
+        raise SceneContractError(
+            f"{name}: occluder has vertices that are not finite; fix the mesh or set "
+            f"the custom property {names.IGNORE_PROP}"
+        )
+    reach = float(np.abs(v).max()) if len(v) else 0.0
+    if reach > MAX_COORD_M:
+        raise SceneContractError(
+            f"{name}: occluder reaches {reach:.3g} m from the origin, beyond "
+            f"{MAX_COORD_M:g} m (10,000 km); fix it or set the custom property "
+            f"{names.IGNORE_PROP}"
+        )
 
 
 def _triangles(eval_obj: bpy.types.Object, matrix: F64) -> tuple[F64, NDArray[np.int32]]:

@@ -166,3 +166,108 @@ def test_marked_by_property_and_height():
     area["height_m"] = 9
     scene = extract_scene()
     assert scene.targets[0].name == "Road" and scene.sensor_areas[0].height_m == 9.0
+
+
+# --- tilt, coordinates and heights (issue 14) ------------------------------------------
+
+
+def test_a_curve_following_the_terrain_is_not_tilted():
+    """Points at different heights, not in one plane: drawn in plan, its plan area."""
+    b.plane("Ground", -50, -50, 250, 50)
+    road = [(0, 0, 0.0), (100, 0, 3.0), (200, 0, 1.0), (200, 20, 4.0), (0, 20, -2.0)]
+    b.curve("Target_Hill", [road])
+    b.curve("SensorArea", [b.rect(-10, 0, -2, 8)])
+    assert extract_scene().targets[0].area_m2 == pytest.approx(4000.0)
+
+
+def test_a_curve_on_a_ramp_follows_it():
+    """In one sloping plane (6 deg) but on the ramp's surface: not tilted."""
+
+    def z(x, y):
+        return 0.03 * x - 0.1 * y
+
+    corners = [(-50, -50), (250, -50), (250, 50), (-50, 50)]
+    b.mesh("Ramp", [(x, y, z(x, y)) for x, y in corners], [(0, 1, 2, 3)])
+    b.curve("Target_Ramp", [[(x, y, z(x, y)) for x, y in b.rect(0, 0, 200, 20)]])
+    b.curve("SensorArea", [[(x, y, z(x, y) + 0.1) for x, y in b.rect(-10, 0, -2, 8)]])
+    assert extract_scene().targets[0].area_m2 == pytest.approx(4000.0)
+    # Lifted 2 m off the ramp, the same curve is a tilted one.
+    bpy.data.objects["Target_Ramp"].location.z = 2.0
+    with pytest.raises(SceneContractError, match=r"^Target_Ramp: .* \(tilted 6\.0 deg"):
+        extract_scene()
+
+
+def test_a_curve_within_one_degree_of_flat_passes():
+    b.plane("Ground", -50, -50, 50, 50)
+    b.curve("Target", [b.rect(0, 0, 10, 10)]).rotation_euler = (math.radians(0.9), 0, 0)
+    b.curve("SensorArea", [b.rect(-10, 0, -2, 8)])
+    area = extract_scene().targets[0].area_m2
+    assert area == pytest.approx(100.0 * math.cos(math.radians(0.9)))
+
+
+def test_a_flat_curve_tilted_out_of_the_xy_plane():
+    def build():
+        t = math.tan(math.radians(5))
+        b.curve("Target_Ramp", [[(0, 0, 0), (10, 0, 0), (10, 10, 10 * t), (0, 10, 10 * t)]])
+        b.curve("SensorArea", [b.rect(-10, 0, -2, 8)])
+
+    assert _err(build).startswith(
+        "Target_Ramp: curve is not in the XY plane (tilted 5.0 deg, flat is within 1 deg): "
+        "its 100 m^2 would count as 100 m^2 in plan"
+    )
+
+
+def test_curve_without_splines_and_bad_points():
+    def empty():
+        data = bpy.data.curves.new("Target_None", "CURVE")
+        bpy.context.scene.collection.objects.link(bpy.data.objects.new("Target_None", data))
+        b.curve("SensorArea", [b.rect(-5, 0, -1, 4)])
+
+    assert _err(empty) == "Target_None: curve has no splines"
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+
+    def nan_point():
+        b.curve("Target", [b.rect(0, 0, 10, 10)])
+        b.curve("SensorArea_N", [b.rect(-5, 0, -1, 4), [(0, 0), (1, 0), (math.nan, 1)]])
+
+    assert _err(nan_point) == "SensorArea_N (spline 2): a curve point is not finite (nan, 1, 0)"
+
+
+def test_occluders_beyond_the_coordinate_limit_are_named():
+    def far():
+        b.curve("Target", [b.rect(0, 0, 10, 10)])
+        b.curve("SensorArea", [b.rect(-5, 0, -1, 4)])
+        b.box("Moon", (0, 0, 3.8e8), (10, 10, 3.8e8 + 10))
+
+    assert _err(far).startswith("Moon: occluder reaches 3.8e+08 m from the origin, beyond 1e+07 m")
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    b.curve("Target", [b.rect(0, 0, 10, 10)])
+    b.curve("SensorArea", [b.rect(-5, 0, -1, 4)])
+    b.box("Moon", (0, 0, 3.8e8), (10, 10, 3.8e8 + 10))["autoscoop_ignore"] = True
+    assert extract_scene().occluders == ()
+
+
+@pytest.mark.parametrize("height", [2500.0, True, "7"])
+def test_sensor_area_height_out_of_range(height):
+    def build():
+        b.curve("Target", [b.rect(0, 0, 10, 10)])
+        b.curve("SensorArea_H", [b.rect(-5, 0, -1, 4)])["height_m"] = height
+
+    assert _err(build).startswith(
+        "SensorArea_H: custom property height_m must be a number in [0, 2000] m (the mast height)"
+    )
+
+
+def test_a_tilted_curve_far_from_the_origin():
+    """Georeferenced points (float32 in Blender, 0.03 m steps at x = 500 km) in a
+    30 deg plane are still one tilted plane; flat ones there still pass."""
+    x0, y0, t = 500_000.0, 6_400_000.0, math.tan(math.radians(30))
+    b.plane("Ground", x0 - 100, y0 - 100, x0 + 100, y0 + 100)
+    b.curve("SensorArea", [[(x0 + x, y0 + y) for x, y in b.rect(-10, 0, -2, 8)]])
+    b.curve("Target_Geo", [[(x0 + x, y0 + y, y * t) for x, y in b.rect(0.3, 0.7, 50.3, 20.7)]])
+    with pytest.raises(SceneContractError, match=r"^Target_Geo: .*\(tilted 30\.0 deg"):
+        extract_scene()
+    target = bpy.data.objects["Target_Geo"]
+    for p in target.data.splines[0].points:
+        p.co.z = 0.0
+    assert extract_scene().targets[0].area_m2 == pytest.approx(1000.0, rel=1e-5)

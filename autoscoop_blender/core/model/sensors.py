@@ -33,7 +33,9 @@ focal length 1, ``t`` the angle off the optical axis).
 
 from __future__ import annotations
 
+import difflib
 import math
+from collections.abc import Collection, Mapping
 from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
@@ -47,6 +49,132 @@ PATTERNS = ("angular", "pinhole")
 
 # |n_z| below this counts as a vertical face; keeps the XY projection finite.
 _MIN_NZ = 1e-3
+
+# --- limits of what a file may ask for ------------------------------------------------
+# The longest reach of any road-side sensor: long-range 77 GHz radars and lidars see
+# cars to about 250-300 m, so 2 km leaves a wide margin; the Blender panel's range
+# field stops there too. Beyond it the ground grid around a sensor (range^2 cells)
+# would not fit in memory. A mast higher than this reaches no ground either.
+MAX_RANGE_M = 2000.0
+# The narrowest field of view (deg, either axis), as in the panel: a telephoto camera
+# or a radar beam is still some degrees wide; below this the ray density blows up.
+MIN_FOV_DEG = 0.1
+# Rays per axis (the panel's limit) and per pattern: 2048 x 2048. The paper camera
+# casts 30,720 rays, a 128-beam lidar 262,144; the point-cloud method holds the whole
+# pattern (times its oversampling) in memory.
+MAX_RAYS_AXIS = 100_000
+MAX_RAYS = 2048 * 2048
+# Detection thresholds above a million points per m^2 (one per mm^2) detect nothing.
+MAX_DENSITY_PER_M2 = 1e6
+# World coordinates (m) a sensor or a scene point may have: UTM northings reach
+# 10,000 km, so any georeferenced proving ground fits; float64 keeps 2 nm there.
+MAX_COORD_M = 1e7
+
+_INTEGER_KEYS = ("rays_h", "rays_v")
+_RANGE_WHY = " m (a road-side sensor's reach: the longest, radars and lidars, see about 300 m)"
+# (lo, hi, unit and reason) of each numeric model key; ``validated`` adds the open
+# bounds (FoV > 0, range > mount height) and the limits between keys.
+_BOUNDS: dict[str, tuple[float, float, str]] = {
+    "h_fov_deg": (0.0, 360.0, " deg"),
+    "v_fov_deg": (0.0, 180.0, " deg"),
+    "range_m": (0.0, MAX_RANGE_M, _RANGE_WHY),
+    "mount_height_m": (0.0, MAX_RANGE_M, " m"),
+    "pitch_min_deg": (-90.0, 90.0, " deg"),
+    "pitch_max_deg": (-90.0, 90.0, " deg"),
+    "rays_h": (1, MAX_RAYS_AXIS, ""),
+    "rays_v": (1, MAX_RAYS_AXIS, ""),
+    "min_density_per_m2": (0.0, MAX_DENSITY_PER_M2, " points per m^2"),
+}
+
+
+# --- reading numbers and keys from files ------------------------------------------------
+def brief(value: Any, limit: int = 40) -> str:
+    """``repr(value)`` on one line, cut to about ``limit`` characters, for messages."""
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 64:
+        return f"a {_digits(value)}-digit {'negative ' if value < 0 else ''}integer"
+    try:
+        text = repr(value)
+    except (RecursionError, ValueError):
+        text = f"<{type(value).__name__}>"
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _digits(value: int) -> str:
+    """Decimal digits of a (huge) integer, without converting it to text."""
+    if value.bit_length() <= 14_000:  # under Python's 4,300-digit str() limit
+        return f"{len(str(abs(value))):,}"
+    return f"{math.floor(abs(value).bit_length() * math.log10(2)):,}-or-more"
+
+
+def number(
+    value: Any,
+    name: str,
+    label: str,
+    lo: float = -math.inf,
+    hi: float = math.inf,
+    why: str = "",
+) -> float:
+    """``value`` as a finite float in [lo, hi], or InputError naming ``name``, the
+    fault and the limits (``why`` is appended to an out-of-range message).
+
+    Integers of any size are taken (JSON and TOML give Python ints of any length)
+    and refused as too large when no float holds them; bools are not numbers here.
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise InputError(f"{label}: {name} must be a number, got {brief(value)}")
+    try:
+        f, huge = float(value), False
+    except OverflowError:
+        f, huge = (math.inf if value > 0 else -math.inf), True
+    if not huge and not math.isfinite(f):
+        overflow = "; 1e309 and beyond overflow to inf" if math.isinf(f) else ""
+        raise InputError(f"{label}: {name} is {f} (must be a finite number{overflow})")
+    shown = f"is {brief(value)}; it" if huge else f"{f:g}"
+    if not lo <= f <= hi:
+        if lo == -math.inf:
+            bound = f"at most {hi:,g}"
+        elif hi == math.inf:
+            bound = f"at least {lo:,g}"
+        else:
+            bound = f"in [{lo:,g}, {hi:,g}]"
+        raise InputError(f"{label}: {name} {shown} must be {bound}{why}")
+    if huge:  # only reached without limits
+        raise InputError(f"{label}: {name} is {brief(value)}, too large for a number")
+    return f
+
+
+def whole_number(
+    value: Any,
+    name: str,
+    label: str,
+    lo: float = -math.inf,
+    hi: float = math.inf,
+    why: str = "",
+) -> int:
+    """``value`` as an int in [lo, hi]: an integer, or a float with an integral value
+    (2.0); InputError as ``number``, or for a fraction (1.9)."""
+    f = number(value, name, label, lo, hi, why)
+    if isinstance(value, int):
+        return value
+    if not f.is_integer():
+        raise InputError(f"{label}: {name} must be a whole number, got {f:g}")
+    return int(f)
+
+
+def check_keys(data: Mapping[Any, Any], known: Collection[str], label: str, what: str) -> None:
+    """InputError naming every key of ``data`` not in ``known``: each with the closest
+    known key ("did you mean ...?"), and the known keys when one has none."""
+    unknown = [k for k in data if k not in known]
+    if not unknown:
+        return
+    parts, lost = [], False
+    for key in unknown:
+        close = difflib.get_close_matches(str(key), sorted(known), n=1)
+        lost = lost or not close
+        parts.append(f"{brief(key)} (did you mean {close[0]!r}?)" if close else brief(key))
+    s = "s" if len(unknown) > 1 else ""
+    known_list = f"; known: {', '.join(sorted(known))}" if lost else ""
+    raise InputError(f"{label}: unknown {what} key{s} {', '.join(parts)}{known_list}")
 
 
 def frame(pitch_deg: float, yaw_deg: float) -> NDArray[np.float64]:
@@ -115,19 +243,21 @@ class SensorModel:
         """
         if isinstance(spec, str):
             if spec not in PRESETS:
+                close = difflib.get_close_matches(spec, sorted(PRESETS), n=1)
+                hint = f"did you mean {close[0]!r}? " if close else ""
                 raise InputError(
-                    f"{label}: unknown sensor preset {spec!r} (known: {', '.join(sorted(PRESETS))})"
+                    f"{label}: unknown sensor preset {brief(spec)} "
+                    f"({hint}known: {', '.join(sorted(PRESETS))})"
                 )
             return PRESETS[spec]
         if not isinstance(spec, dict):
             raise InputError(f"{label}: a model is a preset name or an object of keys")
         spec = dict(spec)
         base_name = spec.pop("preset", None)
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(spec) - known)
-        if unknown:
-            raise InputError(f"{label}: unknown model key(s) {', '.join(unknown)}")
+        check_keys(spec, [f.name for f in fields(cls)] + ["preset"], label, "model")
         if base_name is not None:
+            if not isinstance(base_name, str):
+                raise InputError(f"{label}: preset must be a preset name, got {brief(base_name)}")
             base = cls.from_spec(base_name, label)
             model = replace(base, **spec)
         else:
@@ -140,23 +270,26 @@ class SensorModel:
         return model.validated(label)
 
     def validated(self, label: str) -> SensorModel:
-        """Self with numeric types normalised, or InputError naming the bad value."""
+        """Self with numeric types normalised, or InputError naming the bad value.
+
+        Every number must be finite and within the limits above (``MAX_RANGE_M``,
+        ``MIN_FOV_DEG``, ``MAX_RAYS``, ...); ``rays_h``/``rays_v`` must be whole numbers
+        (2.0 is read as 2, 1.9 is refused).
+        """
         values: dict[str, Any] = {}
         for f in fields(self):
             v = getattr(self, f.name)
             if f.name in ("kind", "pattern"):
                 values[f.name] = v
-                continue
-            if isinstance(v, bool) or not isinstance(v, (int, float)):
-                raise InputError(f"{label}: {f.name} must be a number, got {v!r}")
-            if not math.isfinite(v):
-                raise InputError(f"{label}: {f.name} is {v}")
-            values[f.name] = int(v) if f.name in ("rays_h", "rays_v") else float(v)
+            elif f.name in _INTEGER_KEYS:
+                values[f.name] = whole_number(v, f.name, label, *_BOUNDS[f.name])
+            else:
+                values[f.name] = number(v, f.name, label, *_BOUNDS[f.name])
         m = replace(self, **values)
-        if m.kind not in KINDS:
-            raise InputError(f"{label}: kind must be one of {KINDS}, got {m.kind!r}")
-        if m.pattern not in PATTERNS:
-            raise InputError(f"{label}: pattern must be one of {PATTERNS}")
+        if not isinstance(m.kind, str) or m.kind not in KINDS:
+            raise InputError(f"{label}: kind must be one of {KINDS}, got {brief(m.kind)}")
+        if not isinstance(m.pattern, str) or m.pattern not in PATTERNS:
+            raise InputError(f"{label}: pattern must be one of {PATTERNS}, got {brief(m.pattern)}")
         # A flat image plane cannot reach 180 deg; a spinning pattern may go round.
         if m.pattern == "pinhole" and not 0.0 < m.h_fov_deg < 180.0:
             raise InputError(f"{label}: h_fov_deg {m.h_fov_deg} must be in (0, 180) for a pinhole")
@@ -164,27 +297,29 @@ class SensorModel:
             raise InputError(f"{label}: h_fov_deg {m.h_fov_deg} must be in (0, 360]")
         if not 0.0 < m.v_fov_deg < 180.0:
             raise InputError(f"{label}: v_fov_deg {m.v_fov_deg} must be in (0, 180)")
+        for name in ("h_fov_deg", "v_fov_deg"):
+            if getattr(m, name) < MIN_FOV_DEG:
+                raise InputError(
+                    f"{label}: {name} {getattr(m, name):g} must be at least {MIN_FOV_DEG:g} "
+                    "deg (no road-side sensor's field is narrower)"
+                )
         if m.range_m <= 0:
             raise InputError(f"{label}: range_m {m.range_m} must be > 0")
-        if m.mount_height_m < 0:
-            raise InputError(f"{label}: mount_height_m {m.mount_height_m} must be >= 0")
         if m.range_m <= m.mount_height_m:
             raise InputError(
                 f"{label}: range_m {m.range_m} does not reach the ground from the "
                 f"mount height {m.mount_height_m}"
             )
-        for name in ("pitch_min_deg", "pitch_max_deg"):
-            if not -90.0 <= getattr(m, name) <= 90.0:
-                raise InputError(f"{label}: {name} {getattr(m, name)} not in [-90, 90]")
         if m.pitch_min_deg > m.pitch_max_deg:
             raise InputError(
                 f"{label}: pitch limits contradict: pitch_min_deg {m.pitch_min_deg} > "
                 f"pitch_max_deg {m.pitch_max_deg}"
             )
-        if m.rays_h < 1 or m.rays_v < 1:
-            raise InputError(f"{label}: rays_h and rays_v must be >= 1")
-        if m.min_density_per_m2 < 0:
-            raise InputError(f"{label}: min_density_per_m2 must be >= 0")
+        if m.n_rays > MAX_RAYS:
+            raise InputError(
+                f"{label}: rays_h x rays_v = {m.n_rays:,} rays must be at most {MAX_RAYS:,} "
+                "(2048 x 2048; the paper camera casts 30,720)"
+            )
         return m
 
     # --- geometry ----------------------------------------------------------------
