@@ -140,6 +140,9 @@ class Setting:
             ok = isinstance(value, int) and not isinstance(value, bool)
         elif self.kind is float:
             ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+            if ok and isinstance(value, int) and not abs(value) <= 1e300:
+                digits = len(str(abs(value)))
+                raise InputError(f"{label}: {self.path} is a {digits}-digit integer, beyond any number")
             value = float(value) if ok else value
         else:
             ok = isinstance(value, str)
@@ -182,6 +185,13 @@ def settings_schema(cls: type, prefix: str = "") -> Iterator[Setting]:
         yield Setting(prefix + f.name, kind, optional, default, meta)
 
 
+def _key_text(key: Any) -> str:
+    """A key as an error shows it: as written when plain, quoted when it holds odd
+    characters (a line break would split the one-line message)."""
+    text = str(key)
+    return text if text.isidentifier() else repr(text)
+
+
 def from_mapping(cls: type[T], data: Mapping[str, Any], label: str) -> T:
     """Settings of ``cls`` from a mapping (a TOML document): its defaults replaced by
     ``data``, nested groups as tables; InputError for unknown keys and wrong types,
@@ -192,7 +202,7 @@ def from_mapping(cls: type[T], data: Mapping[str, Any], label: str) -> T:
     by_name = {f.name: f for f in fields(cls)}  # type: ignore[arg-type]
     unknown = sorted(set(data) - set(by_name))
     if unknown:
-        raise InputError(f"{label}: unknown setting(s) {', '.join(unknown)}")
+        raise InputError(f"{label}: unknown setting(s) {', '.join(_key_text(k) for k in unknown)}")
     schema = {s.name: s for s in settings_schema(cls) if "." not in s.path}
     values: dict[str, Any] = {}
     for key, value in data.items():

@@ -28,5 +28,7 @@ def load_config(path: str | Path | None) -> tuple[OptimizeSettings, SensorModel]
         data = tomllib.loads(p.read_text(encoding="utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
         raise InputError(f"{p.name}: not valid TOML ({e})") from None
+    except (ValueError, RecursionError) as e:  # an integer too long to read, nesting too deep
+        raise InputError(f"{p.name}: not readable TOML ({str(e).splitlines()[0]})") from None
     model = SensorModel.from_spec(data.pop("model", "paper_camera"), f"{p.name}: model")
     return OptimizeSettings.from_mapping(data, p.name), model

@@ -20,11 +20,14 @@ SMALL = (480, 300)  # px: enough for 2 px lines, renders in about a second
 def runs(tmp_path_factory):
     """flat_wall optimized (greedy, about a second) without and with --render."""
     out = {}
+    cfg = tmp_path_factory.mktemp("config") / "goal.toml"
+    cfg.write_text("rho = 0.6\n")  # greedy reaches it on flat_wall (exit code 0)
     for name, extra in (("plain", []), ("render", ["--render"])):
         folder = tmp_path_factory.mktemp(name)
         code, stdout, stderr = run_headless(
-            "optimize", FLAT, "--optimizer", "greedy", "--workers", 1, "--out-dir", folder, *extra
-        )
+            "optimize", FLAT, "--optimizer", "greedy", "--config", cfg, "--workers", 1,
+            "--out-dir", folder, *extra,
+        )  # fmt: skip
         assert code == 0, stderr
         out[name] = folder, stdout, stderr
     return out
@@ -124,7 +127,8 @@ def test_render_leaves_result_blend_as_without_it(runs):
     snapshots = []
     for name in ("plain", "render"):
         folder, _, _ = runs[name]
-        assert sorted(p.name for p in folder.iterdir() if p.suffix != ".png") == [
+        written = [p.name for p in folder.iterdir() if p.suffix != ".png"]
+        assert sorted(n for n in written if n != ".autoscoop.lock") == [
             "checkpoint.jsonl", "result.blend", "result.json", "sensors.csv", "sensors.geojson"
         ]  # fmt: skip
         bpy.ops.wm.open_mainfile(filepath=str(folder / "result.blend"))

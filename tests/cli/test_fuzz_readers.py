@@ -19,7 +19,7 @@ from pathlib import Path
 import bpy
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, assume, event, given, settings
+from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 from hypothesis.control import currently_in_test_context
 
@@ -289,33 +289,6 @@ def config_mappings(draw):
 FLOAT_SETTINGS = {s.path for s in settings_schema(OptimizeSettings) if s.kind is float}
 
 
-def int_too_large_for_a_float_knob(data) -> bool:
-    """The known bug in core/settings.py (``test_known_bug_huge_int_for_a_float_setting``):
-    such inputs are left out of the fuzz until it is fixed."""
-
-    def huge(v):
-        return isinstance(v, int) and not isinstance(v, bool) and abs(v) > 1.7976931348623157e308
-
-    if not isinstance(data, dict):
-        return False
-    for key, v in data.items():
-        if key in FLOAT_SETTINGS and huge(v):
-            return True
-        if key in GROUPS and isinstance(v, dict):
-            if any(f"{key}.{k}" in FLOAT_SETTINGS and huge(x) for k, x in v.items()):
-                return True
-    return False
-
-
-def unknown_key_with_a_line_break(data) -> bool:
-    """The second known bug in core/settings.py
-    (``test_known_bug_unknown_setting_with_a_line_break``): left out until fixed."""
-    if not isinstance(data, dict):
-        return False
-    tables = [data, *(v for k, v in data.items() if k in GROUPS and isinstance(v, dict))]
-    return any("\n" in str(k) or "\r" in str(k) for t in tables for k in t)
-
-
 def assert_valid_settings(s: OptimizeSettings) -> None:
     for setting in settings_schema(OptimizeSettings):
         v = s
@@ -328,7 +301,6 @@ def assert_valid_settings(s: OptimizeSettings) -> None:
 @FUZZ
 @given(config_mappings())
 def test_optimize_settings_from_mapping(data):
-    assume(not int_too_large_for_a_float_knob(data) and not unknown_key_with_a_line_break(data))
     try:
         s = OptimizeSettings.from_mapping(data, "c.toml").validated()
     except AutoscoopError as e:
@@ -357,7 +329,6 @@ def toml_value(v):
 @settings(FUZZ, max_examples=200)
 @given(config_mappings(), st.one_of(st.none(), model_specs))
 def test_load_config(data, model):
-    assume(not int_too_large_for_a_float_knob(data) and not unknown_key_with_a_line_break(data))
     if model is not None:
         data = {**data, "model": model}
     text = "\n".join(f"{json.dumps(k)} = {toml_value(v)}" for k, v in data.items() if v is not None)
@@ -374,24 +345,23 @@ def test_load_config(data, model):
     assert_valid_model(m)
 
 
-@pytest.mark.xfail(
-    raises=OverflowError,
-    strict=True,
-    reason="core/settings.py Setting.coerce: float(10**309) overflows (not this change's file)",
-)
-def test_known_bug_huge_int_for_a_float_setting():
-    with pytest.raises(AutoscoopError, match="mast_join_m"):
+def test_a_huge_int_for_a_float_setting_is_one_line():
+    with pytest.raises(AutoscoopError, match="mast_join_m is a 310-digit integer, beyond any number") as info:
         OptimizeSettings.from_mapping({"mast_join_m": 10**309}, "c.toml")
+    assert_clean(info.value)
 
 
-@pytest.mark.xfail(
-    raises=AssertionError,
-    strict=True,
-    reason="core/settings.py from_mapping: unknown keys are joined as they are (not this change's file)",
-)
-def test_known_bug_unknown_setting_with_a_line_break():
-    with pytest.raises(AutoscoopError) as info:
+def test_an_unknown_setting_with_a_line_break_stays_one_line():
+    with pytest.raises(AutoscoopError, match=r"unknown setting\(s\) 'x\\n'") as info:
         OptimizeSettings.from_mapping({"x\n": 1}, "c.toml")
+    assert_clean(info.value)
+
+
+def test_a_toml_integer_too_long_to_read_is_one_line(tmp_path):
+    cfg = tmp_path / "long.toml"
+    cfg.write_text("rho = " + "1" * 5000 + "\n")
+    with pytest.raises(AutoscoopError, match="long.toml: not readable TOML") as info:
+        load_config(cfg)
     assert_clean(info.value)
 
 

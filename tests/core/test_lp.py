@@ -11,6 +11,7 @@ from scipy import sparse
 
 from autoscoop_blender.core.model.scene import Area, SceneModel
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA
+from autoscoop_blender.core.optimize import lp as lp_module
 from autoscoop_blender.core.optimize.bound import (
     combined_bound,
     cover_lp,
@@ -29,7 +30,6 @@ from autoscoop_blender.core.optimize.cover import (
     prune,
     swap_two_for_one,
 )
-from autoscoop_blender.core.optimize import lp as lp_module
 from autoscoop_blender.core.run import Run
 from autoscoop_blender.core.settings import OptimizeSettings
 from tests.core.flat import box_caster, box_mesh

@@ -190,7 +190,7 @@ def test_zip_carries_every_pinned_wheel_for_both_pythons(linux_zip: Path, python
     assert sorted(f[0] for f in fields) == sorted(bundled_pins()), mine
     assert {f[0]: f[1] for f in fields} == bundled_pins()
     assert {"matplotlib", "scipy", "shapely", "highspy", "pillow"} <= set(bundled_pins())
-    for w, (name, _, python_tags, platform_tags) in zip(mine, fields):
+    for w, (_, _, python_tags, platform_tags) in zip(mine, fields):
         assert python_tags in ((python,), ("py3",), ("py2", "py3")), w
         assert platform_tags == ("any",) or all(
             t.startswith("manylinux") and t.endswith("x86_64") for t in platform_tags
