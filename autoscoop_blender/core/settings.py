@@ -141,8 +141,8 @@ class Setting:
         elif self.kind is float:
             ok = isinstance(value, (int, float)) and not isinstance(value, bool)
             if ok and isinstance(value, int) and not abs(value) <= 1e300:
-                digits = len(str(abs(value)))
-                raise InputError(f"{label}: {self.path} is a {digits}-digit integer, beyond any number")
+                digits = int(abs(value).bit_length() * math.log10(2)) + 1  # str() may refuse
+                raise InputError(f"{label}: {self.path} is an integer of {digits} digits, too big")
             value = float(value) if ok else value
         else:
             ok = isinstance(value, str)

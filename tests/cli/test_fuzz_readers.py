@@ -346,9 +346,11 @@ def test_load_config(data, model):
 
 
 def test_a_huge_int_for_a_float_setting_is_one_line():
-    with pytest.raises(AutoscoopError, match="mast_join_m is a 310-digit integer, beyond any number") as info:
+    with pytest.raises(AutoscoopError, match="mast_join_m is an integer of 310 digits, too big") as info:
         OptimizeSettings.from_mapping({"mast_join_m": 10**309}, "c.toml")
     assert_clean(info.value)
+    with pytest.raises(AutoscoopError, match="integer of 5000 digits"):  # str() refuses it
+        OptimizeSettings.from_mapping({"mast_join_m": 10**4999}, "c.toml")
 
 
 def test_an_unknown_setting_with_a_line_break_stays_one_line():
