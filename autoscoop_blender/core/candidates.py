@@ -11,6 +11,11 @@ bounds and exact methods next.
 
 The covered sets are bit-identical to ``targeted`` for the same poses, so a fixed
 candidate's coverage is exactly what any later evaluation reports.
+
+The matrix's size was estimated with the problem (``Problem.estimate``); as it fills,
+a matrix that outgrows what this process can still hold through the optimizer's peak
+(``budget.nonzero_limit``) stops the build with a one-line InputError rather than a
+MemoryError later.
 """
 
 from __future__ import annotations
@@ -22,23 +27,16 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import sparse
 
+from . import budget
+from .errors import InputError
 from .model.sensors import SensorModel, SensorPose, frame
-from .problem import Problem
+from .problem import Problem, orientations
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
 
 # Positions between two progress reports while a candidate set is built.
 POSITIONS_PER_REPORT = 16
-
-
-def orientations(
-    pitch_min: float, pitch_max: float, yaw_step_deg: float = 10.0, pitches: int = 6
-) -> F64:
-    """(O, 2) (pitch, yaw) degrees: yaw in steps from 0, pitch evenly over the limits."""
-    yaws = np.arange(0.0, 360.0, yaw_step_deg)
-    ps = np.linspace(pitch_min, pitch_max, pitches) if pitch_max > pitch_min else [pitch_min]
-    return np.array([(p, y) for p in ps for y in yaws])
 
 
 @dataclass(frozen=True)
@@ -79,7 +77,10 @@ def build_candidates(problem: Problem) -> Generator[int, None, CandidateSet]:
     models = (problem.model,)
     positions = problem.space.positions
     angles = tuple(orientations(m.pitch_min_deg, m.pitch_max_deg) for m in models)
-    cols: list[I64] = []
+    limit = budget.nonzero_limit(problem.settings.optimizer)
+    nonzeros = 0
+    # Column indices as int32, the matrix's own index type (scipy keeps them uncopied).
+    cols: list[NDArray[np.int32]] = []
     cand_pos: list[int] = []
     cand_ori: list[int] = []
     cand_model: list[int] = []
@@ -88,18 +89,22 @@ def build_candidates(problem: Problem) -> Generator[int, None, CandidateSet]:
         for i, (x, y) in enumerate(positions):
             pose = problem.pose(x, y, ang[0, 0], ang[0, 1])
             covered, ordinal = problem.probe.cover_many(model, pose, rots)
+            ordinal32 = ordinal.astype(np.int32)
             for o in np.flatnonzero(covered.any(axis=1)):
-                cols.append(ordinal[covered[o]])
+                cols.append(ordinal32[covered[o]])
                 cand_pos.append(i)
                 cand_ori.append(int(o))
                 cand_model.append(m)
+            nonzeros += int(np.count_nonzero(covered))
+            if nonzeros > limit:
+                raise InputError(_outgrown(problem, nonzeros, i + 1, len(positions), limit))
             if i % POSITIONS_PER_REPORT == 0:
                 yield i
     counts = [len(c) for c in cols]
     matrix = sparse.csr_matrix(
         (
             np.ones(sum(counts), dtype=np.float32),
-            np.concatenate(cols) if cols else np.zeros(0, dtype=np.int64),
+            np.concatenate(cols) if cols else np.zeros(0, dtype=np.int32),
             np.cumsum([0, *counts]),
         ),
         shape=(len(cols), problem.n_targets),
@@ -114,3 +119,15 @@ def build_candidates(problem: Problem) -> Generator[int, None, CandidateSet]:
         matrix=matrix,
     )
     return problem.candidates
+
+
+def _outgrown(problem: Problem, nonzeros: int, done: int, total: int, limit: int) -> str:
+    """The refusal of a candidate matrix that outgrew what the process can hold."""
+    est = problem.estimate
+    return (
+        f"the candidate matrix at grid_m = {problem.grid.spacing:g} outgrew its estimate "
+        f"({budget.count_text(est.nonzeros)} nonzeros): {budget.count_text(nonzeros)} after "
+        f"{done} of {total} mast positions, more than the {budget.count_text(limit)} this "
+        f"machine can hold through the {problem.settings.optimizer} optimizer: raise "
+        "grid_m (--grid) or position_step_m, or use --optimizer es"
+    )

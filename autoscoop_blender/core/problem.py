@@ -6,6 +6,10 @@ method (and the exact cached ``targeted`` probe beside it, for candidate sets an
 reachability), the search space of mast positions and orientations, and the demand
 (how many target points make the goal). Poses are placed on the ground here, in one
 place, so that every optimizer and every later stage stands masts the same way.
+
+Before any of it is built, the run's memory and work are estimated from the settings,
+the model and the scene's areas (``budget.check_run``): a run that cannot finish is
+refused with one line naming the setting to change.
 """
 
 from __future__ import annotations
@@ -19,9 +23,11 @@ import shapely
 from numpy.typing import NDArray
 from shapely.geometry.base import BaseGeometry
 
+from . import budget
 from .coverage.base import SensorCoverage
 from .coverage.cached import CachedTargetedEvaluator
 from .coverage.evaluator import Evaluator, make_evaluator
+from .coverage.pointcloud import auto_oversample
 from .geom.grid import GridArrays, GroundGrid
 from .geom.raycast import RayCaster
 from .model.scene import SceneModel
@@ -29,6 +35,35 @@ from .model.sensors import SensorModel, SensorPose
 from .settings import OptimizeSettings
 
 F64 = NDArray[np.float64]
+
+
+def orientations(
+    pitch_min: float, pitch_max: float, yaw_step_deg: float = 10.0, pitches: int = 6
+) -> F64:
+    """(O, 2) (pitch, yaw) degrees: yaw in steps from 0, pitch evenly over the limits.
+    The orientations of the candidate set (``candidates.py``)."""
+    yaws = np.arange(0.0, 360.0, yaw_step_deg)
+    ps = np.linspace(pitch_min, pitch_max, pitches) if pitch_max > pitch_min else [pitch_min]
+    return np.array([(p, y) for p in ps for y in yaws])
+
+
+def run_estimate(
+    scene: SceneModel, model: SensorModel, settings: OptimizeSettings, check: bool = False
+) -> budget.Estimate:
+    """What an optimization of ``model`` sensors on ``scene`` with ``settings`` will
+    need (``budget.estimate_run`` with the candidate orientations and the pointcloud's
+    oversampling); ``check``: InputError when it cannot go ahead (``budget.check_run``).
+    ``min_density_per_m2`` in the settings overrides the model's, as in ``Problem``."""
+    if settings.min_density_per_m2 is not None:
+        model = replace(model, min_density_per_m2=settings.min_density_per_m2)
+    angles = orientations(model.pitch_min_deg, model.pitch_max_deg)
+
+    def oversample_at(grid_m: float) -> int:
+        return settings.oversample or auto_oversample(model, grid_m)
+
+    if check:
+        return budget.check_run(scene, model, settings, angles, oversample_at)
+    return budget.estimate_run(scene, model, settings, angles, oversample_at)
 
 
 class SearchSpace:
@@ -96,6 +131,8 @@ class Problem:
 
     scene: local metres; caster: casts against the scene's occluders; settings are
     validated here. ``min_density_per_m2`` in the settings overrides the model's.
+    ``estimate``: what the run was estimated to need (``budget.Estimate``); InputError
+    before anything is allocated when it cannot go ahead.
     """
 
     def __init__(
@@ -106,12 +143,13 @@ class Problem:
         settings: OptimizeSettings,
     ) -> None:
         self.settings = settings = settings.validated()
+        self.estimate = run_estimate(scene, model, settings, check=True)
         if settings.min_density_per_m2 is not None:
             model = replace(model, min_density_per_m2=settings.min_density_per_m2)
         self.scene = scene
         self.model = model
         self.grid = GroundGrid(
-            scene, caster, settings.grid_m, settings.target_height_m, model.range_m
+            scene, caster, settings.grid_m, settings.target_height_m, model.range_m, check=False
         )
         self.evaluator: Evaluator = make_evaluator(settings, self.grid, caster, settings.cache)
         # Rays to uncovered points, candidate sets and the proof that a gap cannot be

@@ -8,7 +8,11 @@ for ``g^2`` of ground. Cells are addressed by their flat index ``i * ny + j``.
 Target cells (centres inside a target area) are dropped onto the scene's top surface
 at once: they are the target points A_t. Other cells are dropped only when an
 evaluator first needs them (a footprint outside the targets), so no ray is cast for
-ground nobody looks at.
+ground nobody looks at. Drops go in batches (``budget.DROP_BATCH``), which bounds the
+caster's memory in flight.
+
+The grid's memory and the work on it are estimated before anything is allocated
+(``budget.check_grid``): a grid the machine cannot hold is refused in one line.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ import shapely
 from numpy.typing import NDArray
 from scipy import ndimage
 
+from .. import budget
 from ..errors import InputError, SceneContractError
 from ..model.scene import SceneModel
 from .raycast import FloorCaster, RayCaster
@@ -63,6 +68,11 @@ class GroundGrid:
     Built from a scene (``GroundGrid(scene, caster, ...)``), or from another grid's
     ``arrays()`` in a worker process (``GroundGrid.from_arrays``): the same cells,
     surface and distances, with the worker's own caster for cells not dropped yet.
+
+    check: refuse (InputError) a grid whose estimate (``budget.check_grid``: the grid,
+    a full evaluation within ``reach_m``, the reference footprint's grid) the machine
+    cannot hold; False when the caller has checked a run that includes it
+    (``Problem``).
     """
 
     def __init__(
@@ -72,18 +82,17 @@ class GroundGrid:
         spacing: float = 1.0,
         target_height_m: float = 0.0,
         reach_m: float = 0.0,
+        *,
+        check: bool = True,
     ) -> None:
         if not (math.isfinite(spacing) and spacing > 0):
             raise InputError(f"grid spacing {spacing} must be > 0")
         g = float(spacing)
+        if check:
+            budget.check_grid(scene, g, reach_m)
         lo_z, hi_z = scene.z_range()
         areas = [a.geometry for a in (*scene.targets, *scene.sensor_areas)]
-        minx, miny, maxx, maxy = shapely.union_all(areas).bounds
-        pad = reach_m + 2 * g
-        x0 = math.floor((minx - pad) / g) * g
-        y0 = math.floor((miny - pad) / g) * g
-        nx = int(math.ceil((maxx + pad - x0) / g))
-        ny = int(math.ceil((maxy + pad - y0) / g))
+        x0, y0, nx, ny = budget.grid_shape(shapely.union_all(areas).bounds, g, reach_m)
         n = nx * ny
         cells, region = _target_cells(scene, x0, y0, g, nx, ny)
         if len(cells) == 0:
@@ -228,8 +237,13 @@ class GroundGrid:
         return self._z[cells].astype(float), self._normal[cells].astype(float)
 
     def drop(self, xy: F64) -> tuple[F64, F64]:
-        """Heights (K,) and upward normals (K, 3) of the top surface under points (K, 2)."""
+        """Heights (K,) and upward normals (K, 3) of the top surface under points (K, 2),
+        cast in batches of ``budget.DROP_BATCH`` (each ray's answer is its own)."""
         xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+        batch = budget.DROP_BATCH
+        if len(xy) > batch:
+            parts = [self.drop(xy[k : k + batch]) for k in range(0, len(xy), batch)]
+            return np.concatenate([z for z, _ in parts]), np.concatenate([n for _, n in parts])
         origins = np.column_stack([xy, np.full(len(xy), self._z_top)])
         dirs = np.tile((0.0, 0.0, -1.0), (len(xy), 1))
         dist, normals = self.caster.cast_normals(origins, dirs, self._drop_len)

@@ -1,0 +1,190 @@
+"""Memory and work estimated before casting (``core/budget.py``): the counts against
+arithmetic and against what is then built, refusals in one line naming the setting,
+and default runs allowed."""
+
+import math
+import time
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from autoscoop_blender.core import budget
+from autoscoop_blender.core.candidates import build_candidates
+from autoscoop_blender.core.errors import InputError
+from autoscoop_blender.core.geom.grid import GroundGrid
+from autoscoop_blender.core.geom.raycast import BoxCaster
+from autoscoop_blender.core.model.sensors import PAPER_CAMERA, ROADSIDE_LIDAR, TRAFFIC_RADAR
+from autoscoop_blender.core.problem import Problem, run_estimate
+from autoscoop_blender.core.settings import OptimizeSettings
+from tests.core.flat import flat_scene
+
+GIB = 1 << 30
+# A 10 m x 10 m target at the origin, a 4 m x 4 m sensor area 10 m east of it.
+TARGET = (0.0, 0.0, 10.0, 10.0)
+SENSOR = (20.0, 0.0, 24.0, 4.0)
+
+
+def hand_scene():
+    return flat_scene(target=TARGET, sensor=SENSOR)
+
+
+def built(problem):
+    """The problem's candidate set, built to the end."""
+    gen = build_candidates(problem)
+    while True:
+        try:
+            next(gen)
+        except StopIteration as done:
+            return done.value
+
+
+def test_grid_counts_are_arithmetic():
+    # Areas' bounds (0, 0)-(24, 10); at g = 0.5 with an 80 m reach the lattice pads
+    # 80 + 2 g = 81 m on each side: x from -81 over 24 + 162 m, y over 10 + 162 m.
+    est = budget.estimate_grid(hand_scene(), 0.5, 80.0)
+    assert est.grid_cells == (186 * 2) * (172 * 2) == 127_968
+    assert est.target_points == (10 * 2) ** 2 == 400
+    assert est.disk_cells == math.ceil(math.pi * 80**2 / 0.5**2) == 80_425
+    # A full evaluation drops every cell in reach and may cast a sight ray to each.
+    assert est.rays_per_evaluation == 2 * est.disk_cells
+    assert est.grid_bytes == 127_968 * budget.GRID_CELL_BYTES + 400 * budget.TARGET_POINT_BYTES
+    # The reference footprint's flat grid: (2 x 80 + 2 x 2 x 0.5) / 0.5 cells a side.
+    assert budget.reference_cells(80.0, 0.5) == 324**2
+
+
+def test_grid_counts_match_the_grid_built():
+    scene = hand_scene()
+    for g in (0.5, 1.0, 2.0):
+        est = budget.estimate_grid(scene, g, 80.0)
+        grid = GroundGrid(scene, BoxCaster(ground_z=0.0), g, reach_m=80.0)
+        assert est.grid_cells == grid.nx * grid.ny
+        assert est.target_points == grid.n_targets
+        a = grid.arrays()
+        resident = a.dist.nbytes + a.z.nbytes + a.normal.nbytes + grid._target_ordinal.nbytes
+        assert resident == est.grid_cells * budget.GRID_CELL_BYTES
+
+
+def test_run_counts_match_the_problem_and_its_candidates():
+    # On flat, empty ground the candidates cover what the flat-ground profile says:
+    # positions exactly, cached rows and matrix nonzeros within 2 %, for each preset.
+    scene = flat_scene(target=(0, 0, 60, 14), sensor=(0, 16, 60, 18))
+    for model in (PAPER_CAMERA, ROADSIDE_LIDAR, TRAFFIC_RADAR):
+        problem = Problem(
+            scene, BoxCaster(ground_z=0.0), model, OptimizeSettings(optimizer="greedy")
+        )
+        est = problem.estimate
+        assert est.positions == len(problem.space.positions) == 31 * 2
+        assert est.target_points == problem.n_targets == 60 * 14
+        assert est.orientations == 36 * 6
+        cands = built(problem)
+        rows = sum(len(a) for a in problem.probe._answers.values())
+        assert est.cache_rows == pytest.approx(rows, rel=0.02), model.kind
+        # Rays go only to rows some orientation needs: at most the rows.
+        assert problem.probe.extra_rays <= 1.02 * est.candidate_rays
+        assert est.nonzeros == pytest.approx(cands.matrix.nnz, rel=0.02), model.kind
+
+
+def test_estimates_scale_with_the_grid():
+    scene = hand_scene()
+    fine, coarse = (
+        run_estimate(scene, PAPER_CAMERA, OptimizeSettings(grid_m=g)) for g in (0.5, 1.0)
+    )
+    # Positions every 2 g: a quarter as many per m^2; points per candidate, too.
+    assert fine.positions == 25 and coarse.positions == 9
+    assert fine.nonzeros == pytest.approx(coarse.nonzeros * 4 * 25 / 9, rel=0.05)
+    assert fine.peak_bytes > coarse.peak_bytes
+
+
+def test_refusal_is_one_line_naming_the_setting_and_a_grid_that_fits():
+    t0 = time.perf_counter()
+    with pytest.raises(InputError) as err:
+        Problem(hand_scene(), BoxCaster(ground_z=0.0), PAPER_CAMERA, OptimizeSettings(grid_m=0.001))
+    msg = str(err.value)
+    assert time.perf_counter() - t0 < 5
+    assert "\n" not in msg
+    assert msg.startswith("grid_m = 0.001 needs ") and "ground cells" in msg
+    assert "80 m reach" in msg and "the machine has" in msg
+    # The fix: a coarser grid, with what it needs.
+    hint = msg.split("raise grid_m (--grid; ")[1]
+    assert float(hint.split()[0]) > 0.001 and ("GiB" in hint or "MiB" in hint)
+
+
+def test_grid_alone_is_checked_for_coverage_runs():
+    # ``headless coverage`` and the panel's Evaluate build the grid directly.
+    with pytest.raises(InputError, match=r"^grid_m = 0.001 needs .* ground cells"):
+        GroundGrid(hand_scene(), BoxCaster(ground_z=0.0), 0.001, reach_m=80.0)
+
+
+def test_refusal_names_the_candidate_matrix_and_other_fixes():
+    scene = flat_scene(target=(0, 0, 60, 14), sensor=(0, 16, 60, 18))
+    settings = OptimizeSettings()
+    est = run_estimate(scene, PAPER_CAMERA, settings)
+    assert est.peak_stage == "optimizer"
+    small = est.peak_bytes - (16 << 20)  # a machine a little short of it
+
+    def redo(g):
+        return run_estimate(scene, PAPER_CAMERA, replace(settings, grid_m=g))
+
+    with pytest.raises(InputError) as err:
+        budget.check(est, redo, memory_bytes=small, resident=0)
+    msg = str(err.value)
+    assert msg.startswith("the lp optimizer at grid_m = 1 needs a candidate matrix of about ")
+    assert "62 mast positions x 216 orientations" in msg
+    # The first coarser grid that fits, with what it needs.
+    assert "raise grid_m (--grid; 2 needs " in msg
+    assert budget.verdict(redo(2.0), memory_bytes=small, resident=0) is None
+    assert msg.endswith("or position_step_m, or use --optimizer es")
+
+
+def test_work_limits():
+    scene = hand_scene()
+    # A pointcloud pose at 0.05 m: the paper camera's 30,720 rays x 14^2.
+    est = run_estimate(
+        scene, PAPER_CAMERA, OptimizeSettings(grid_m=0.05, optimizer="es", method="pointcloud")
+    )
+    assert est.pattern_rays == 30_720 * 14**2
+    stage, why = budget.verdict(est, memory_bytes=1 << 50, resident=0)
+    assert stage == "pattern" and "2.0 M rays a pose" in why
+    # A full evaluation at 0.01 m: 201 M cells within 80 m.
+    est = budget.estimate_grid(scene, 0.01, 80.0)
+    stage, why = budget.verdict(est, memory_bytes=1 << 50, resident=0)
+    assert stage == "rays" and "20.0 M rays an evaluation" in why
+
+
+def test_default_runs_pass():
+    scene = flat_scene()  # a 200 m x 200 m target around a 2 m x 2 m sensor area
+    for optimizer in ("lp", "greedy", "es"):
+        settings = OptimizeSettings(optimizer=optimizer)
+        problem = Problem(scene, BoxCaster(ground_z=0.0), PAPER_CAMERA, settings)
+        est = problem.estimate
+        assert budget.verdict(est) is None
+        assert est.peak_bytes < 0.5 * GIB
+        assert est.grid_cells == problem.grid.nx * problem.grid.ny
+
+
+def test_a_matrix_that_outgrows_its_estimate_stops_the_build(monkeypatch):
+    problem = Problem(
+        hand_scene(), BoxCaster(ground_z=0.0), PAPER_CAMERA, OptimizeSettings(optimizer="greedy")
+    )
+    monkeypatch.setattr(budget, "nonzero_limit", lambda optimizer: 1000)
+    with pytest.raises(InputError, match=r"outgrew its estimate .* the greedy optimizer: raise"):
+        built(problem)
+
+
+def test_drops_in_batches_give_the_same_surface(monkeypatch):
+    scene = flat_scene(boxes=[((3.0, 3.0, 0.0), (5.0, 6.0, 2.0))])
+    caster = BoxCaster([((3.0, 3.0, 0.0), (5.0, 6.0, 2.0))], ground_z=0.0)
+    grid = GroundGrid(scene, caster, 1.0, reach_m=10.0)
+    xy = np.random.default_rng(0).uniform(-20, 20, (1000, 2))
+    whole = grid.drop(xy)
+    monkeypatch.setattr(budget, "DROP_BATCH", 64)
+    parts = grid.drop(xy)
+    assert np.array_equal(whole[0], parts[0]) and np.array_equal(whole[1], parts[1])
+
+
+def test_machine_figures():
+    assert budget.machine_memory_bytes() > 256 << 20
+    assert budget.resident_bytes() >= 0
+    assert budget.count_text(46.6e9) == "46.6 G" and budget.count_text(512) == "512"
+    assert budget.bytes_text(43 * GIB) == "43.0 GiB" and budget.bytes_text(310 << 20) == "310 MiB"
