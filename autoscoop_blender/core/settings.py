@@ -28,6 +28,7 @@ from typing import Any, TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
+from .checks import brief
 from .errors import InputError
 
 T = TypeVar("T")
@@ -141,8 +142,7 @@ class Setting:
         elif self.kind is float:
             ok = isinstance(value, (int, float)) and not isinstance(value, bool)
             if ok and isinstance(value, int) and not abs(value) <= 1e300:
-                digits = int(abs(value).bit_length() * math.log10(2)) + 1  # str() may refuse
-                raise InputError(f"{label}: {self.path} is an integer of {digits} digits, too big")
+                raise InputError(f"{label}: {self.path} is {brief(value)}, too large")
             value = float(value) if ok else value
         else:
             ok = isinstance(value, str)

@@ -19,15 +19,9 @@ import json
 from pathlib import Path
 from typing import Any
 
+from ..core.checks import check_keys, number
 from ..core.errors import InputError
-from ..core.model.sensors import (
-    MAX_COORD_M,
-    MAX_RANGE_M,
-    SensorModel,
-    SensorSpec,
-    check_keys,
-    number,
-)
+from ..core.model.sensors import MAX_COORD_M, MAX_RANGE_M, SensorModel, SensorSpec
 from .reports import RESULT_SCHEMA
 
 TOP_KEYS = ("model", "sensors")
