@@ -127,6 +127,11 @@ NONZERO_BYTES = 8
 NONZERO_BUILD_BYTES = 16
 NONZERO_OPTIMIZER_BYTES = {"greedy": 26, "lp": 36}
 LP_BASE_BYTES = 192 << 20
+# An ES worker process before its grid and cache: a spawned interpreter with bpy,
+# numpy, scipy and shapely imported and the caster built (measured 373 MiB on
+# two_routes at 0.5 m, less its 19 MiB grid). Each worker then rebuilds the grid and
+# keeps its own cache (``optimize/parallel.py``).
+WORKER_BASE_BYTES = 400 << 20
 
 # --- the estimate's raster ---------------------------------------------------------------
 # The areas are rasterized to at most this many cells (sampled 2 x 2 a cell), cells of
@@ -155,9 +160,10 @@ class Estimate:
     rows the cached evaluator may keep. Bytes: ``grid_bytes`` the grid resident,
     ``stages`` (name, peak bytes) of each stage with what is resident by then
     ("grid", "evaluation", "reference", "positions", "pattern", "cache",
-    "candidates", "optimizer"), ``peak_bytes`` the largest, above what the process
+    "candidates", "optimizer", "workers"), ``peak_bytes`` the largest, above what the process
     held before the run, ``peak_stage`` its name.
-    ``optimizer`` and ``method`` say which run: None for a coverage run.
+    ``optimizer`` and ``method`` say which run: None for a coverage run;
+    ``workers`` the processes of the run (this one and the ES's workers beside it).
     """
 
     grid_m: float
@@ -179,6 +185,7 @@ class Estimate:
     candidate_rays: int = 0
     cache_rows: int = 0
     pattern_rays: int = 0
+    workers: int = 1
 
     @property
     def candidates(self) -> int:
@@ -306,17 +313,22 @@ def reference_cells(reach_m: float, spacing: float) -> int:
 
 
 def estimate_grid(
-    scene: SceneModel, spacing: float, reach_m: float, view_fraction: float = 1.0
+    scene: SceneModel,
+    spacing: float,
+    reach_m: float,
+    view_fraction: float = 1.0,
+    pattern_rays: int = 0,
 ) -> Estimate:
     """What a ground grid of ``spacing`` (m) over the scene's areas plus ``reach_m``
     (m) needs, and what a coverage run on it does: one full evaluation per sensor,
     which drops the cells within reach and casts sight rays to those in view (at most
     ``view_fraction`` of them: 1 when the model is not known), and the reference
-    footprint's flat grid of the same spacing.
+    footprint's flat grid of the same spacing; with ``pattern_rays`` > 0, the
+    pointcloud method's evaluations instead, that many rays a pose.
 
     Stages (peak bytes above the process before the run): "grid" while it is built,
     "evaluation" a full evaluation with the grid resident, "reference" the reference
-    grid with the grid resident.
+    grid with the grid resident, "pattern" a pointcloud pose with the grid resident.
     """
     g = float(spacing)
     areas = (*scene.targets, *scene.sensor_areas)
@@ -337,6 +349,8 @@ def estimate_grid(
     if disk:
         stages.append(("evaluation", resident + evaluation))
         stages.append(("reference", resident + reference_cells(reach_m, g) * REFERENCE_CELL_BYTES))
+    if pattern_rays:
+        stages.append(("pattern", resident + pattern_rays * POINTCLOUD_RAY_BYTES))
     stage, peak = max(stages, key=lambda s: s[1])
     return Estimate(
         grid_m=g,
@@ -349,6 +363,8 @@ def estimate_grid(
         peak_bytes=peak,
         peak_stage=stage,
         stages=tuple(stages),
+        method="pointcloud" if pattern_rays else "targeted",
+        pattern_rays=pattern_rays,
     )
 
 
@@ -408,6 +424,7 @@ def estimate_run(
     angles: F64,
     oversample_at: Callable[[float], int] | None = None,
     footprints: _Footprints | None = None,
+    workers: int = 1,
 ) -> Estimate:
     """What an optimization of ``model`` sensors on the scene with ``settings`` needs
     (``settings.min_density_per_m2`` already applied to the model): the grid stages of
@@ -418,7 +435,9 @@ def estimate_run(
     (``problem.orientations``); ``oversample_at(grid_m)``: the pointcloud pattern's
     rays per pattern ray per axis at a grid (None: ``settings.oversample``, else 1);
     ``footprints``: ``_footprints`` of the same inputs, if known (they do not depend
-    on the grid). ``problem.run_estimate`` fills these in.
+    on the grid); ``workers``: processes scoring the ES's populations, each with its
+    own grid, cache and evaluation in flight (stage "workers"; 1: none beside this
+    one). ``problem.run_estimate`` fills these in.
     """
     fp = footprints or _footprints(scene, model, settings, angles)
     g = settings.grid_m
@@ -459,6 +478,10 @@ def estimate_run(
         resident += nonzeros * NONZERO_BYTES
     for stage in ("evaluation", "reference"):
         stages[stage] += resident - est.grid_bytes + cache
+    if settings.optimizer == "es" and workers > 1:
+        in_flight = stages["evaluation"] - resident - cache
+        worker = WORKER_BASE_BYTES + est.grid_bytes + cache + in_flight
+        stages["workers"] = resident + cache + workers * worker
     stage, peak = max(stages.items(), key=lambda s: s[1])
     return replace(
         est,
@@ -474,6 +497,7 @@ def estimate_run(
         candidate_rays=int(positions * fp.reach_m2 / g**2) if uses_candidates else 0,
         cache_rows=cache_rows,
         pattern_rays=pattern_rays,
+        workers=workers,
     )
 
 
@@ -705,10 +729,22 @@ def check(
     raise InputError(f"{_what(est, stage)}; {why}: {hint}{_other_fixes(est, stage)}")
 
 
-def check_grid(scene: SceneModel, spacing: float, reach_m: float) -> Estimate:
-    """``estimate_grid`` checked (InputError when it cannot go ahead)."""
-    est = estimate_grid(scene, spacing, reach_m)
-    return check(est, lambda g: estimate_grid(scene, g, reach_m))
+def check_grid(
+    scene: SceneModel,
+    spacing: float,
+    reach_m: float,
+    pattern_rays_at: Callable[[float], int] | None = None,
+) -> Estimate:
+    """``estimate_grid`` checked (InputError when it cannot go ahead);
+    ``pattern_rays_at(grid_m)``: the most rays a pointcloud pose casts at a grid (None
+    for the targeted method)."""
+
+    def at(g: float) -> Estimate:
+        return estimate_grid(
+            scene, g, reach_m, pattern_rays=pattern_rays_at(g) if pattern_rays_at else 0
+        )
+
+    return check(at(spacing), at)
 
 
 def check_run(
@@ -717,13 +753,15 @@ def check_run(
     settings: OptimizeSettings,
     angles: F64,
     oversample_at: Callable[[float], int] | None = None,
+    workers: int = 1,
 ) -> Estimate:
     """``estimate_run`` checked (InputError when it cannot go ahead)."""
     fp = _footprints(scene, model, settings, angles)
-    est = estimate_run(scene, model, settings, angles, oversample_at, fp)
+    est = estimate_run(scene, model, settings, angles, oversample_at, fp, workers)
 
     def redo(g: float) -> Estimate:
-        return estimate_run(scene, model, replace(settings, grid_m=g), angles, oversample_at, fp)
+        s = replace(settings, grid_m=g)
+        return estimate_run(scene, model, s, angles, oversample_at, fp, workers)
 
     return check(est, redo)
 
@@ -769,6 +807,12 @@ def _what(est: Estimate, stage: str) -> str:
             f"the {est.optimizer} optimizer at {g} keeps sight lines of up to "
             f"{count_text(est.cache_rows)} (position, point) pairs ({peak} at the peak)"
         )
+    if stage == "workers":
+        return (
+            f"the es optimizer at {g} with {est.workers} worker processes, each with its "
+            f"own grid and sight lines of up to {count_text(est.cache_rows)} (position, "
+            f"point) pairs, needs {peak} together"
+        )
     if stage == "positions":
         return (
             f"{g} with mast positions every {est.step_m:g} m needs "
@@ -785,6 +829,8 @@ def _other_fixes(est: Estimate, stage: str) -> str:
         return " or position_step_m, or use --optimizer es"
     if stage == "pattern":
         return " or lower oversample (--oversample)"
+    if stage == "workers":
+        return " or use fewer workers (--workers)"
     return ""
 
 

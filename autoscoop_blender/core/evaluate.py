@@ -14,8 +14,10 @@ from dataclasses import replace
 
 import numpy as np
 
+from . import budget
 from .coverage.base import place
 from .coverage.evaluator import make_evaluator
+from .coverage.pointcloud import auto_oversample
 from .geom.grid import GroundGrid
 from .geom.raycast import RayCaster, inside_solid
 from .masts import group_positions
@@ -48,7 +50,17 @@ def evaluate_layout(
     t0 = time.perf_counter()
     warnings = list(scene.warnings)
     reach = max(s.model.range_m for s in specs)
-    grid = GroundGrid(scene, caster, settings.grid_m, settings.target_height_m, reach)
+    models = [resolve_model(s, settings) for s in specs]
+
+    def pattern_rays_at(grid_m: float) -> int:
+        """The most rays a pointcloud pose of these sensors casts at ``grid_m``."""
+        return max(
+            m.n_rays * (settings.oversample or auto_oversample(m, grid_m)) ** 2 for m in models
+        )
+
+    pattern = pattern_rays_at if settings.method == "pointcloud" else None
+    budget.check_grid(scene, settings.grid_m, reach, pattern)
+    grid = GroundGrid(scene, caster, settings.grid_m, settings.target_height_m, reach, check=False)
     evaluator = make_evaluator(settings, grid, caster)
     if settings.method == "pointcloud" and settings.target_height_m > 0:
         warnings.append(
@@ -63,7 +75,7 @@ def evaluate_layout(
             warnings.append(
                 f"sensor {k} at ({spec.x:g}, {spec.y:g}) stands outside every sensor area"
             )
-        model = resolve_model(spec, settings)
+        model = models[k - 1]
         height = spec.height_m
         if height is None and spec.z is not None:
             ground = float(grid.ground_z(np.array([[x, y]]))[0])

@@ -48,12 +48,17 @@ def orientations(
 
 
 def run_estimate(
-    scene: SceneModel, model: SensorModel, settings: OptimizeSettings, check: bool = False
+    scene: SceneModel,
+    model: SensorModel,
+    settings: OptimizeSettings,
+    check: bool = False,
+    workers: int = 1,
 ) -> budget.Estimate:
     """What an optimization of ``model`` sensors on ``scene`` with ``settings`` will
     need (``budget.estimate_run`` with the candidate orientations and the pointcloud's
-    oversampling); ``check``: InputError when it cannot go ahead (``budget.check_run``).
-    ``min_density_per_m2`` in the settings overrides the model's, as in ``Problem``."""
+    oversampling), ``workers`` ES worker processes included; ``check``: InputError
+    when it cannot go ahead (``budget.check_run``). ``min_density_per_m2`` in the
+    settings overrides the model's, as in ``Problem``."""
     if settings.min_density_per_m2 is not None:
         model = replace(model, min_density_per_m2=settings.min_density_per_m2)
     angles = orientations(model.pitch_min_deg, model.pitch_max_deg)
@@ -62,8 +67,8 @@ def run_estimate(
         return settings.oversample or auto_oversample(model, grid_m)
 
     if check:
-        return budget.check_run(scene, model, settings, angles, oversample_at)
-    return budget.estimate_run(scene, model, settings, angles, oversample_at)
+        return budget.check_run(scene, model, settings, angles, oversample_at, workers)
+    return budget.estimate_run(scene, model, settings, angles, oversample_at, workers=workers)
 
 
 class SearchSpace:
@@ -131,8 +136,9 @@ class Problem:
 
     scene: local metres; caster: casts against the scene's occluders; settings are
     validated here. ``min_density_per_m2`` in the settings overrides the model's.
-    ``estimate``: what the run was estimated to need (``budget.Estimate``); InputError
-    before anything is allocated when it cannot go ahead.
+    ``estimate``: what the run was estimated to need (``budget.Estimate``), with
+    ``workers`` ES worker processes beside this one; InputError before anything is
+    allocated when it cannot go ahead.
     """
 
     def __init__(
@@ -141,9 +147,10 @@ class Problem:
         caster: RayCaster,
         model: SensorModel,
         settings: OptimizeSettings,
+        workers: int = 1,
     ) -> None:
         self.settings = settings = settings.validated()
-        self.estimate = run_estimate(scene, model, settings, check=True)
+        self.estimate = run_estimate(scene, model, settings, check=True, workers=workers)
         if settings.min_density_per_m2 is not None:
             model = replace(model, min_density_per_m2=settings.min_density_per_m2)
         self.scene = scene

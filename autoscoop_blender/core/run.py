@@ -60,7 +60,7 @@ class Run:
         workers: int = 1,
     ) -> None:
         self.t0 = time.perf_counter()
-        self.problem = Problem(scene, make_caster(), model, settings)
+        self.problem = Problem(scene, make_caster(), model, settings, workers)
         self.settings = self.problem.settings
         self.on_fixed = on_fixed
         self.solution = Solution(np.zeros(self.problem.n_targets, dtype=bool))

@@ -83,6 +83,28 @@ def test_coverage_refuses_a_grid_too_fine(tmp_path):
     assert not out.exists()
 
 
+def test_coverage_refuses_a_pointcloud_pattern_too_large(tmp_path):
+    # --oversample 40: the paper camera's 192 x 160 = 30,720 rays x 40^2 = 49.2 M rays
+    # a pose, beyond the 2 M a pose that can be interrupted in time.
+    out = tmp_path / "cov.json"
+    line, seconds = refused(
+        "coverage",
+        SAMPLES / "two_routes.blend",
+        "--sensors",
+        SAMPLES / "two_routes_sensors.json",
+        "--out",
+        out,
+        "--method",
+        "pointcloud",
+        "--oversample",
+        "40",
+    )
+    assert seconds < 10
+    assert line.startswith("error: method pointcloud at grid_m = 1 casts 49.2 M rays a pose")
+    assert line.endswith("or lower oversample (--oversample)")
+    assert not out.exists()
+
+
 @pytest.mark.parametrize("name", ["flat_wall", "two_routes", "full_ground"])
 @pytest.mark.parametrize("optimizer", ["lp", "greedy", "es"])
 def test_sample_scenes_at_default_settings_are_allowed(name, optimizer):

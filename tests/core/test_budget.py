@@ -152,6 +152,46 @@ def test_work_limits():
     assert stage == "rays" and "20.0 M rays an evaluation" in why
 
 
+def test_each_es_worker_holds_its_own_grid_and_cache():
+    scene = hand_scene()
+    settings = OptimizeSettings(optimizer="es", grid_m=0.5)
+    one = run_estimate(scene, PAPER_CAMERA, settings)
+    assert "workers" not in dict(one.stages)
+    # A worker: the interpreter, then the grid, the cache (well below its 2 GiB cap
+    # here) and one evaluation in flight, as this process holds them.
+    cache = one.cache_rows * (budget.CACHE_ROW_BYTES + budget.CACHE_ANSWER_BYTES)
+    resident = one.grid_bytes + one.positions * budget.POSITION_BYTES
+    assert one.stage_bytes("cache") == resident + cache
+    in_flight = one.stage_bytes("evaluation") - resident - cache
+    disk, sight = one.disk_cells, one.rays_per_evaluation - one.disk_cells
+    assert in_flight == (
+        disk * budget.EVALUATION_CELL_BYTES
+        + min(disk, budget.DROP_BATCH) * budget.DROP_RAY_BYTES
+        + sight * budget.SIGHT_RAY_BYTES
+    )
+    worker = budget.WORKER_BASE_BYTES + one.grid_bytes + cache + in_flight
+    for n in (2, 3):
+        est = run_estimate(scene, PAPER_CAMERA, settings, workers=n)
+        assert est.workers == n
+        assert est.stage_bytes("workers") == one.stage_bytes("cache") + n * worker
+    # A machine that holds the run with two workers but not with three: the refusal
+    # names the workers and the flag.
+    two = run_estimate(scene, PAPER_CAMERA, settings, workers=2).peak_bytes
+    three = run_estimate(scene, PAPER_CAMERA, settings, workers=3)
+    memory = (two + three.peak_bytes) // 2
+    assert budget.verdict(replace(three, workers=2), memory, 0)[0] == "workers"
+    with pytest.raises(InputError) as err:
+        budget.check(three, lambda g: three, memory_bytes=memory, resident=0)
+    msg = str(err.value)
+    assert msg.startswith("the es optimizer at grid_m = 0.5 with 3 worker processes")
+    assert msg.endswith("or use fewer workers (--workers)")
+    # Greedy and lp have no workers: the count changes nothing.
+    greedy = replace(settings, optimizer="greedy")
+    assert run_estimate(scene, PAPER_CAMERA, greedy, workers=4).stages == (
+        run_estimate(scene, PAPER_CAMERA, greedy).stages
+    )
+
+
 def test_default_runs_pass():
     scene = flat_scene()  # a 200 m x 200 m target around a 2 m x 2 m sensor area
     for optimizer in ("lp", "greedy", "es"):
