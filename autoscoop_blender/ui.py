@@ -179,12 +179,18 @@ classes = (
 _register, _unregister = bpy.utils.register_classes_factory(classes)
 
 
+# When the panel's list of areas must be made again.
+_FORGET_ON = (bpy.app.handlers.depsgraph_update_post, bpy.app.handlers.load_post)
+
+
 def register() -> None:
     _register()
-    bpy.app.handlers.depsgraph_update_post.append(pipeline.forget_area_report)
+    for handlers in _FORGET_ON:
+        handlers.append(pipeline.forget_area_report)
 
 
 def unregister() -> None:
-    if pipeline.forget_area_report in bpy.app.handlers.depsgraph_update_post:
-        bpy.app.handlers.depsgraph_update_post.remove(pipeline.forget_area_report)
+    for handlers in _FORGET_ON:
+        if pipeline.forget_area_report in handlers:
+            handlers.remove(pipeline.forget_area_report)
     _unregister()

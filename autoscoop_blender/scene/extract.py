@@ -11,6 +11,7 @@ results collection.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import bpy
@@ -117,12 +118,9 @@ def extract_scene(
     vertices, faces, occluders, ground = occluder_mesh(depsgraph, results)
     vertices = vertices - origin
     # Tilted areas last: whether a ring follows the terrain depends on the occluders.
-    surface = _Surface(vertices, faces)
+    surface = _Surface(lambda: (vertices, faces))
     for obj, rings in target_rings + sensor_rings:
-        for k, ring in enumerate(rings):
-            # Blender keeps coordinates in float32: allow for its rounding of world ones.
-            rounding = 1e-6 * float(np.abs(ring).max())
-            _check_flat(_ring_label(obj, k), ring - origin, surface, rounding)
+        check_flat_rings(obj, rings, surface, origin)
     warnings: list[str] = []
     if not occluders:
         warnings.append(
@@ -220,23 +218,53 @@ def _check_coordinates(label: str, pts: F64, what: str) -> None:
 
 
 class _Surface:
-    """The occluders' surfaces (local metres), asked whether points lie on them; the
-    BVHTree is built on the first question only (rarely asked: see ``_check_flat``)."""
+    """The occluders' surfaces, asked whether points lie on them. ``mesh()`` gives the
+    vertices (V, 3) and triangles (F, 3) in the frame of the points asked; it and the
+    BVHTree are made on the first question only (rarely asked: see ``_check_flat``)."""
 
-    def __init__(self, vertices: F64, faces: NDArray[np.int32]) -> None:
-        self.vertices, self.faces = vertices, faces
+    def __init__(self, mesh: Callable[[], tuple[F64, NDArray[np.int32]]]) -> None:
+        self._mesh = mesh
         self._tree: BVHTree | None = None
+        self._empty = False
 
     def holds(self, pts: F64, tol: float) -> bool:
         """Whether every point (N, 3) lies within ``tol`` m of an occluder's surface."""
-        if len(self.faces) == 0:
-            return False
+        if self._tree is None and not self._empty:
+            vertices, faces = self._mesh()
+            self._empty = len(faces) == 0
+            if not self._empty:
+                self._tree = BVHTree.FromPolygons(
+                    vertices.tolist(), faces.tolist(), all_triangles=True
+                )
         if self._tree is None:
-            self._tree = BVHTree.FromPolygons(
-                self.vertices.tolist(), self.faces.tolist(), all_triangles=True
-            )
+            return False
         near = self._tree.find_nearest
         return all(near(Vector(p), tol)[0] is not None for p in pts.tolist())
+
+
+def occluder_surface() -> _Surface:
+    """The context's occluders' surfaces in world metres, for ``check_flat_rings``
+    outside a run (the panel's list of areas): gathered only if a ring asks."""
+
+    def mesh() -> tuple[F64, NDArray[np.int32]]:
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        vertices, faces, _, _ = occluder_mesh(depsgraph, results_collections())
+        return vertices, faces
+
+    return _Surface(mesh)
+
+
+def check_flat_rings(
+    obj: bpy.types.Object, rings: list[F64], surface: _Surface, origin: F64 | None = None
+) -> None:
+    """SceneContractError naming the curve (and spline) when one of its rings (K, 3,
+    world metres) is tilted (``_check_flat``); ``surface`` is in world metres less
+    ``origin`` (default: none)."""
+    for k, ring in enumerate(rings):
+        # Blender keeps coordinates in float32: allow for its rounding of world ones.
+        rounding = 1e-6 * float(np.abs(ring).max())
+        local = ring if origin is None else ring - origin
+        _check_flat(_ring_label(obj, k), local, surface, rounding)
 
 
 def _check_flat(label: str, pts: F64, surface: _Surface, rounding: float = 0.0) -> None:

@@ -41,7 +41,13 @@ from ..core.settings import (
 )
 from ..io.figure import render_png
 from ..io.reports import coverage_dict, result_dict, sensors_csv, sensors_geojson
-from .extract import area_role, curve_rings, extract_scene
+from .extract import (
+    area_role,
+    check_flat_rings,
+    curve_rings,
+    extract_scene,
+    occluder_surface,
+)
 from .factory import BVHFactory
 from .spawn import (
     COVERAGE_COLLECTION,
@@ -115,6 +121,9 @@ def area_report(scene: bpy.types.Scene) -> list[tuple[str, str, str]]:
     if key in _AREA_CACHE:
         return _AREA_CACHE[key]
     rows = []
+    # Whether a planar sloping curve follows the terrain needs the occluders: gathered
+    # only when such a curve is met.
+    surface = occluder_surface()
     for obj in scene.objects:
         role = area_role(obj)
         if role is None:
@@ -123,7 +132,9 @@ def area_report(scene: bpy.types.Scene) -> list[tuple[str, str, str]]:
             rows.append((role, obj.name, f"is a {obj.type.lower()}, not a curve"))
             continue
         try:
-            geom = area_from_rings(obj.name, curve_rings(obj))
+            rings = curve_rings(obj)
+            geom = area_from_rings(obj.name, rings)
+            check_flat_rings(obj, rings, surface)
             rows.append((role, obj.name, f"{geom.area:,.0f} m^2"))
         except AutoscoopError as e:
             rows.append((role, obj.name, str(e).removeprefix(f"{obj.name}: ")))
@@ -131,8 +142,11 @@ def area_report(scene: bpy.types.Scene) -> list[tuple[str, str, str]]:
     return rows
 
 
+@bpy.app.handlers.persistent
 def forget_area_report(*_args: Any) -> None:
-    """depsgraph_update_post handler: the scene changed, check it again."""
+    """depsgraph_update_post and load_post handler: the scene changed or another file
+    was opened (whose scene may have the same name), check it again. Persistent: a
+    handler that is not is dropped when a file is opened."""
     _AREA_CACHE.clear()
 
 

@@ -9,7 +9,7 @@ import pytest
 
 import autoscoop_blender
 from autoscoop_blender import names, ui
-from autoscoop_blender.scene import pipeline
+from autoscoop_blender.scene import extract, pipeline
 from tests.blender import builders as b
 from tests.blender.conftest import SAMPLES
 from tests.cli.conftest import run_headless
@@ -47,10 +47,24 @@ def test_register_unregister_register_leaves_nothing_behind():
     assert not hasattr(bpy.types.Scene, "autoscoop")
     for cls in ("AUTOSCOOP_OT_optimize", "AUTOSCOOP_PT_main", "AUTOSCOOP_PG_settings"):
         assert not hasattr(bpy.types, cls)
-    assert pipeline.forget_area_report not in bpy.app.handlers.depsgraph_update_post
+    handlers = (bpy.app.handlers.depsgraph_update_post, bpy.app.handlers.load_post)
+    assert all(pipeline.forget_area_report not in h for h in handlers)
     autoscoop_blender.register()
     assert hasattr(bpy.types.Scene, "autoscoop") and hasattr(bpy.types, "AUTOSCOOP_OT_optimize")
-    assert bpy.app.handlers.depsgraph_update_post.count(pipeline.forget_area_report) == 1
+    assert all(h.count(pipeline.forget_area_report) == 1 for h in handlers)
+
+
+def test_the_list_of_areas_follows_the_file_opened():
+    # Both samples' scenes are named "Scene": the list must not be the last file's.
+    bpy.ops.wm.open_mainfile(filepath=str(SAMPLES / "flat_wall.blend"))
+    first = pipeline.area_report(bpy.context.scene)
+    bpy.ops.wm.open_mainfile(filepath=str(SAMPLES / "two_routes.blend"))
+    assert bpy.app.handlers.load_post.count(pipeline.forget_area_report) == 1
+    rows = pipeline.area_report(bpy.context.scene)
+    assert rows != first
+    assert sorted(n for _, n, _ in rows) == sorted(
+        o.name for o in bpy.context.scene.objects if extract.area_role(o) is not None
+    )
 
 
 def test_optimize_and_evaluate_in_background():

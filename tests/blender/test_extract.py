@@ -8,6 +8,7 @@ import pytest
 
 from autoscoop_blender import names
 from autoscoop_blender.core.errors import SceneContractError
+from autoscoop_blender.scene import pipeline
 from autoscoop_blender.scene.extract import extract_scene
 from tests.blender import builders as b
 
@@ -191,10 +192,18 @@ def test_a_curve_on_a_ramp_follows_it():
     b.curve("Target_Ramp", [[(x, y, z(x, y)) for x, y in b.rect(0, 0, 200, 20)]])
     b.curve("SensorArea", [[(x, y, z(x, y) + 0.1) for x, y in b.rect(-10, 0, -2, 8)]])
     assert extract_scene().targets[0].area_m2 == pytest.approx(4000.0)
-    # Lifted 2 m off the ramp, the same curve is a tilted one.
+    pipeline.forget_area_report()  # the add-on's handlers are not registered here
+    rows = {name: info for _, name, info in pipeline.area_report(bpy.context.scene)}
+    assert rows["Target_Ramp"] == "4,000 m^2"
+    # Lifted 2 m off the ramp, the same curve is a tilted one: so says the panel too.
     bpy.data.objects["Target_Ramp"].location.z = 2.0
     with pytest.raises(SceneContractError, match=r"^Target_Ramp: .* \(tilted 6\.0 deg"):
         extract_scene()
+    pipeline.forget_area_report()
+    rows = {name: info for _, name, info in pipeline.area_report(bpy.context.scene)}
+    assert rows["Target_Ramp"].startswith("curve is not in the XY plane (tilted 6.0 deg")
+    assert rows["SensorArea"] == "64 m^2"
+    pipeline.forget_area_report()
 
 
 def test_a_curve_within_one_degree_of_flat_passes():
