@@ -349,7 +349,9 @@ def check_zip(path: Path, platform: str) -> list[str]:
             raise BuildError(f"{path.name}: wheel {w} loads on none of {', '.join(pythons)}")
     for python in pythons:
         for name in pinned_versions():
-            count = sum(wheel_fields(w)[0] == name and loads_on(w, python, platform) for w in wheels)
+            count = sum(
+                wheel_fields(w)[0] == name and loads_on(w, python, platform) for w in wheels
+            )
             if count != 1:
                 raise BuildError(
                     f"{path.name}: {count} {name} wheels for {python} on {platform}, expected 1"

@@ -193,7 +193,9 @@ def test_a_second_run_into_a_busy_folder_is_refused(finished, tmp_path):
 def test_a_run_short_of_its_goal_says_so_in_its_exit_code(tmp_path):
     cfg = tmp_path / "capped.toml"
     cfg.write_text("max_sensors = 1\n" + SMALL)
-    code, stdout, stderr = run_headless("optimize", FLAT, "--config", cfg, "--out-dir", tmp_path / "o")
+    code, stdout, stderr = run_headless(
+        "optimize", FLAT, "--config", cfg, "--out-dir", tmp_path / "o"
+    )
     result = json.loads((tmp_path / "o" / "result.json").read_text())
     assert code == 3 and result["metrics"]["sensors"] == 1
     assert result["metrics"]["coverage_fraction"] < 0.6

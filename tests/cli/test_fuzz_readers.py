@@ -346,7 +346,9 @@ def test_load_config(data, model):
 
 
 def test_a_huge_int_for_a_float_setting_is_one_line():
-    with pytest.raises(AutoscoopError, match="mast_join_m is a 310-digit integer, too large") as info:
+    with pytest.raises(
+        AutoscoopError, match="mast_join_m is a 310-digit integer, too large"
+    ) as info:
         OptimizeSettings.from_mapping({"mast_join_m": 10**309}, "c.toml")
     assert_clean(info.value)
     with pytest.raises(AutoscoopError, match="a 4,999-or-more-digit integer"):  # str() refuses it

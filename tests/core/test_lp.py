@@ -130,9 +130,7 @@ def test_combined_bound_is_the_best_split_of_the_goal():
     split gives part 0 five points (5 - 2 = 3) and part 1 one (2): 5. With an
     unsolved part (line 0) that can cover the goal alone, nothing is proven."""
     lines, coverable = [(1.0, 2.0), (2.0, 0.0)], [5, 5]
-    by_hand = min(
-        max(0.0, g - 2.0) + max(0.0, 2.0 * (6 - g)) for g in np.linspace(1, 5, 401)
-    )
+    by_hand = min(max(0.0, g - 2.0) + max(0.0, 2.0 * (6 - g)) for g in np.linspace(1, 5, 401))
     assert combined_bound(lines, coverable, 6) == pytest.approx(5.0) == pytest.approx(by_hand)
     assert combined_bound([(1.0, 2.0), (0.0, 0.0)], [5, 6], 6) == 0.0
 

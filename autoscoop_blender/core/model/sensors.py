@@ -87,7 +87,6 @@ _BOUNDS: dict[str, tuple[float, float, str]] = {
 }
 
 
-
 def frame(pitch_deg: float, yaw_deg: float) -> NDArray[np.float64]:
     """(3, 3) rows forward, left, up of a sensor with the given pitch and yaw (deg)."""
     p, y = math.radians(pitch_deg), math.radians(yaw_deg)

@@ -330,7 +330,9 @@ def combined_bound(lines: list[tuple[float, float]], coverable: list[int], goal:
     return total
 
 
-def _quiet(gen: Generator[LPProgress | None, None, LPSolution]) -> Generator[None, None, LPSolution]:
+def _quiet(
+    gen: Generator[LPProgress | None, None, LPSolution],
+) -> Generator[None, None, LPSolution]:
     """``gen`` yielding None for its progress: a part's bound is not the whole's."""
     try:
         while True:
