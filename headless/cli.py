@@ -1,6 +1,6 @@
 """Command-line parsing and dispatch. Exit codes: 0 done (optimize: the goal reached),
 2 bad input, 3 optimize ended short of its goal (the result is still written), 130
-interrupted (Ctrl-C; the checkpoint keeps what was fixed).
+interrupted (Ctrl-C or SIGTERM; the checkpoint keeps what was fixed).
 
 A user mistake (``AutoscoopError``) prints one line ``error: <object>: <problem>`` on
 stderr and writes nothing; warnings print as ``warning: ...`` and the job goes on.
@@ -13,7 +13,9 @@ from __future__ import annotations
 
 import argparse
 import logging
+import signal
 import sys
+import threading
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -133,9 +135,17 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _terminated(signum: int, frame: object) -> None:
+    """SIGTERM (``kill``, ``timeout``, a batch system's end of job) ends a run as Ctrl-C
+    does: what it finished is kept, its workers are shut down, exit code 130."""
+    raise KeyboardInterrupt
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s: %(message)s")
+    main_thread = threading.current_thread() is threading.main_thread()
+    before = signal.signal(signal.SIGTERM, _terminated) if main_thread else None
     handlers: dict[str, Callable[[argparse.Namespace], int]] = {
         "coverage": _coverage,
         "optimize": _optimize,
@@ -153,6 +163,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    finally:
+        if before is not None:  # an embedding interpreter (Blender) gets its own back
+            signal.signal(signal.SIGTERM, before)
 
 
 def _coverage(args: argparse.Namespace) -> int:

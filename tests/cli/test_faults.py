@@ -77,6 +77,40 @@ def test_workers_die_with_a_killed_parent(tmp_path):
             main.kill()
 
 
+def terminated(main: subprocess.Popen, when) -> str:
+    """SIGTERM to ``main`` once ``when()`` holds; its stderr, after checking that it
+    exited with 130, printed no traceback and left none of its processes running."""
+    try:
+        assert wait_for(when, 120), main.stderr
+        helpers = children_of(main.pid)
+        main.send_signal(signal.SIGTERM)
+        _, stderr = main.communicate(timeout=60)
+        assert main.returncode == 130, stderr
+        assert "Traceback" not in stderr and "leaked" not in stderr, stderr
+        assert wait_for(lambda: not any(alive(p) for p in helpers), 15)
+        return stderr
+    finally:
+        if main.poll() is None:
+            main.kill()
+
+
+@linux_only
+def test_sigterm_ends_a_run_as_ctrl_c_does(tmp_path):
+    # ``kill`` or ``timeout`` once sensors are fixed: they are kept, as after Ctrl-C.
+    out = tmp_path / "run"
+    checkpoint = out / "checkpoint.jsonl"
+
+    def fixed() -> int:
+        return len(checkpoint.read_bytes().splitlines()) - 1 if checkpoint.exists() else 0
+
+    stderr = terminated(start_optimize(out), lambda: fixed() >= 1)
+    assert f"interrupted: {fixed()} sensor(s) kept in {checkpoint}" in stderr
+    # While the workers are being spawned (their start-up data half sent): no worker
+    # is left with a truncated pickle, none keeps running.
+    main = start_optimize(tmp_path / "early")
+    terminated(main, lambda: len(children_of(main.pid)) >= 2)
+
+
 def test_a_second_run_into_a_locked_folder_is_refused(tmp_path):
     with OutDirLock(tmp_path / "out"):
         with pytest.raises(InputError, match=rf"another AutoSCOOP run \(process {os.getpid()}\)"):

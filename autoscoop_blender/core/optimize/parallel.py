@@ -16,9 +16,11 @@ from __future__ import annotations
 import multiprocessing
 import multiprocessing.connection
 import os
+import signal
 import threading
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -90,8 +92,40 @@ def _score(poses: Sequence[SensorPose], fixed_since: list[FixedMark]) -> tuple[l
     return fits, rays
 
 
+def _started() -> None:
+    """A first task: it makes an executor spawn its process."""
+
+
+@contextmanager
+def _interrupts_held() -> Iterator[None]:
+    """Hold Ctrl-C and SIGTERM back until the block ends, then deliver them.
+
+    A spawned process is sent its start-up data (the grid's arrays: megabytes) through
+    a pipe by the main thread; an interrupt in the middle of that write leaves the child
+    a truncated pickle, and a traceback on the user's terminal. Signals can only be
+    handled in the main thread: elsewhere this holds nothing.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught: list[int] = []
+    kinds = (signal.SIGINT, signal.SIGTERM)
+    before = {k: signal.signal(k, lambda signum, frame: caught.append(signum)) for k in kinds}
+    try:
+        yield
+    finally:
+        for k, handler in before.items():
+            signal.signal(k, handler)
+        for signum in caught[:1]:
+            signal.raise_signal(signum)
+
+
 class WorkerPool:
-    """``workers`` processes (spawned: a forked Blender is not safe) that score poses."""
+    """``workers`` processes (spawned: a forked Blender is not safe) that score poses.
+
+    The processes are spawned here, with interrupts held (``_interrupts_held``); they
+    then load the grid and the caster while the main process goes on.
+    """
 
     def __init__(
         self, inputs: WorkerInputs, make_caster: Callable[[], RayCaster], workers: int
@@ -103,6 +137,13 @@ class WorkerPool:
             )
             for _ in range(workers)
         ]
+        try:
+            with _interrupts_held():
+                for executor in self.executors:
+                    executor.submit(_started)
+        except BaseException:  # interrupted: no process is left behind
+            self.shutdown()
+            raise
         self.synced = [0] * workers  # entries of the fixed log each worker has been sent
 
     @property
