@@ -52,6 +52,7 @@ def test_a_file_round_trips_through_the_schema():
         ({"seed": 1.5}, "c.toml: seed must be an integer, got 1.5"),
         ({"es": {"mu": 40.5}}, "c.toml [es]: mu must be an integer, got 40.5"),
         ({"max_sensors": True}, "c.toml: max_sensors must be an integer, got True"),
+        ({"max_sensors": 2.5}, "c.toml: max_sensors must be an integer, got 2.5"),
         ({"cache": 1}, "c.toml: cache must be true or false, got 1"),
         ({"rho": 1.5}, "setting rho = 1.5 is out of range: must be in (0, 1]"),
         ({"rho": 0.0}, "setting rho = 0.0 is out of range: must be in (0, 1]"),
