@@ -22,6 +22,17 @@ IGNORE_PROP = "autoscoop_ignore"  # True: the mesh does not occlude
 OVERHANG_PROP = "autoscoop_overhang"  # True: occludes, but nothing stands on it
 HEIGHT_PROP = "height_m"  # on a sensor area: mast height there, metres
 
+# Georeference, on the Blender scene (set by the OpenDRIVE import, or by hand): the
+# projected CRS of the scene's world metres, and where the scene sits in it. A scene
+# point p is at (cos h * px - sin h * py + x, sin h * px + cos h * py + y, pz + z) in
+# the CRS, with CRS_OFFSET_PROP = (x, y, z, h); h in radians (OpenDRIVE's header
+# <offset> convention, with any shift the import made to keep coordinates small).
+CRS_PROP = "autoscoop_crs"  # a PROJ string, "EPSG:nnnn" or WKT
+CRS_OFFSET_PROP = "autoscoop_crs_offset"  # (x, y, z, hdg): metres, metres, metres, rad
+# On objects made by the OpenDRIVE import: where they came from.
+XODR_ROAD_PROP = "autoscoop_xodr_road"  # the road id (a string, as in the file)
+XODR_LANES_PROP = "autoscoop_xodr_lanes"  # the lane type(s), e.g. "driving"
+
 # Everything AutoSCOOP creates goes into this collection and nowhere else.
 RESULTS_COLLECTION = "AutoSCOOP Results"
 RESULTS_TAG = "autoscoop_results"  # set on it, so it is found if Blender renames it
