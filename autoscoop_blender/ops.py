@@ -207,20 +207,29 @@ class AUTOSCOOP_OT_export(bpy.types.Operator):
         items=[
             ("JSON", "JSON", "result.json"),
             ("CSV", "CSV", "sensors.csv"),
-            ("GEOJSON", "GeoJSON", "sensors.geojson"),
+            (
+                "GEOJSON",
+                "GeoJSON",
+                "sensors_local.geojson (scene metres); with the scene's CRS also "
+                "sensors.geojson (WGS84) and plan.gpkg (GeoPackage)",
+            ),
             ("PNG", "PNG", "coverage.png"),
         ],
     )
 
     def execute(self, context: bpy.types.Context) -> set[str]:
         try:
-            path = pipeline.export(context.scene, self.kind, context.scene.autoscoop.export_dir)
+            paths, note = pipeline.export(
+                context.scene, self.kind, context.scene.autoscoop.export_dir
+            )
         except AutoscoopError as e:
             return _fail(self, e)
         except OSError as e:
             self.report({"ERROR"}, f"{context.scene.autoscoop.export_dir}: {e.strerror}")
             return {"CANCELLED"}
-        self.report({"INFO"}, f"Wrote {path}")
+        self.report({"INFO"}, "Wrote " + ", ".join(str(p) for p in paths))
+        if note:
+            self.report({"WARNING"}, note)
         return {"FINISHED"}
 
 

@@ -23,10 +23,10 @@ from autoscoop_blender.io.figure import render_png
 from autoscoop_blender.io.reports import (
     POINTS_HEADER,
     coverage_dict,
+    gis_files,
     point_rows,
     result_dict,
     sensors_csv,
-    sensors_geojson,
 )
 from autoscoop_blender.io.sensor_file import read_sensors
 from headless.checkpoint import Checkpoint, checkpoint_header
@@ -149,8 +149,10 @@ def default_scene() -> str | None:
 
 
 def write_results(result: Result, out_dir: Path, render: bool = False) -> None:
-    """result.json, sensors.csv, sensors.geojson, coverage.png and result.blend, all
-    or none; result.blend holds the scene with the results collection.
+    """result.json, sensors.csv, the GIS files, coverage.png and result.blend, all or
+    none; result.blend holds the scene with the results collection. The GIS files
+    (``reports.gis_files``): sensors_local.geojson, and with the scene's CRS
+    sensors.geojson (WGS84) and plan.gpkg; without one a note on stderr says so.
 
     render: also result_view.png, the oblique view of that scene, rendered after
     result.blend's bytes were taken; the render leaves the scene as it was.
@@ -163,9 +165,12 @@ def write_results(result: Result, out_dir: Path, render: bool = False) -> None:
     files: dict[Path, str | bytes] = {
         out_dir / "result.json": json_text(result_dict(result, blender)),
         out_dir / "sensors.csv": sensors_csv(result),
-        out_dir / "sensors.geojson": json_text(sensors_geojson(result)),
         out_dir / "coverage.png": render_png(result),
     }
+    gis, note = gis_files(result)
+    files.update({out_dir / name: data for name, data in gis.items()})
+    if note:
+        print(f"note: {note}", file=sys.stderr)
     spawn_results(bpy.context.scene, result)
     out_dir.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=out_dir) as tmp:
@@ -175,6 +180,14 @@ def write_results(result: Result, out_dir: Path, render: bool = False) -> None:
     if render:
         files[out_dir / "result_view.png"] = render_view_png(bpy.context.scene)
     write_files(files)
+    if note:
+        # An earlier run's georeferenced files would not be this plan's.
+        for name in STALE_WITHOUT_CRS:
+            (out_dir / name).unlink(missing_ok=True)
+
+
+STALE_WITHOUT_CRS = ("sensors.geojson", "plan.gpkg")
+"""Written only with a CRS: removed from the output folder by a run without one."""
 
 
 def render_view_png(scene: Any) -> bytes:

@@ -96,6 +96,8 @@ class Result:
     sensor model (None when each sensor brought its own). occluder_outlines: the top
     view of the occluders that stand up from the terrain (buildings, walls, trees;
     ``geom.outline``), one Polygon per connected part in world XY, largest first.
+    crs, crs_offset: the scene's georeference (``SceneModel.crs``; None: none), which
+    the GIS outputs (``io.georef``) apply to these world coordinates.
     """
 
     sensors: tuple[SensorRecord, ...]
@@ -118,6 +120,8 @@ class Result:
     target_polygon_m2: float = 0.0
     rays: dict[str, int] = field(default_factory=dict)
     occluder_outlines: tuple[Polygon, ...] = ()
+    crs: str | None = None
+    crs_offset: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
 
     @property
     def coverage_fraction(self) -> float:
@@ -255,6 +259,8 @@ def finish_layout(
         target_polygon_m2=round(float(scene.target_union.area), 2),
         rays={"sight": sight, "drop": drop, "probe": extra_rays},
         occluder_outlines=outlines,
+        crs=scene.crs,
+        crs_offset=scene.crs_offset,
     )
 
 

@@ -1,21 +1,24 @@
 """Report files of a result: result.json, the coverage job's JSON, sensors.csv,
-sensors.geojson and the per-point CSV.
+sensors_local.geojson and the per-point CSV.
 
 Everything is read from a ``core.result.Result``; nothing here computes coverage.
-All coordinates are the scene's world coordinates (metres). The GeoJSON carries them
-as they are: a planner's GIS assigns the proving ground's projected CRS.
+All coordinates are the scene's world coordinates (metres). sensors_local.geojson
+carries them as they are; the georeferenced outputs (sensors.geojson in WGS84,
+plan.gpkg in the scene's CRS) are ``io.georef`` and ``io.gpkg``.
 """
 
 from __future__ import annotations
 
 import csv
 import io
+import json
 import platform
 from typing import Any
 
 import numpy as np
 import shapely
 
+from .. import names
 from ..core.result import Result
 
 RESULT_SCHEMA = "autoscoop.result/1"
@@ -181,7 +184,8 @@ def sensors_csv(result: Result) -> str:
 
 
 def sensors_geojson(result: Result) -> dict[str, Any]:
-    """Masts as points, sensor footprints as (multi)polygons, in world metres."""
+    """sensors_local.geojson: masts and sensors as points, sensor footprints as
+    (multi)polygons, in the scene's world metres (no CRS)."""
     features: list[dict[str, Any]] = []
     for m in result.masts:
         features.append(
@@ -193,6 +197,22 @@ def sensors_geojson(result: Result) -> dict[str, Any]:
                     "mast": m.n,
                     "height_m": m.height_m,
                     "sensors": list(m.sensors),
+                },
+            }
+        )
+    for s in result.sensors:
+        features.append(
+            {
+                "type": "Feature",
+                "geometry": {"type": "Point", "coordinates": [s.x, s.y, round(s.z, 4)]},
+                "properties": {
+                    "kind": "sensor",
+                    "sensor": s.n,
+                    "mast": s.mast + 1,
+                    "height_m": s.height_m,
+                    "pitch_deg": round(s.pitch_deg, 3),
+                    "yaw_deg": round(s.yaw_deg, 3),
+                    "model": s.model.to_dict(),
                 },
             }
         )
@@ -216,3 +236,30 @@ def sensors_geojson(result: Result) -> dict[str, Any]:
             }
         )
     return {"type": "FeatureCollection", "features": features}
+
+
+def gis_files(result: Result) -> tuple[dict[str, str | bytes], str | None]:
+    """The GIS outputs of a result by file name, and a note when it has no CRS.
+
+    Always sensors_local.geojson (world metres); with the scene's CRS also
+    sensors.geojson (RFC 7946, WGS84) and plan.gpkg (the scene's CRS).
+    """
+    from .georef import georef_of, sensors_geojson_wgs84
+    from .gpkg import plan_gpkg
+
+    files: dict[str, str | bytes] = {"sensors_local.geojson": _json(sensors_geojson(result))}
+    georef = georef_of(result)
+    if georef is None:
+        note = (
+            f"{result.scene or 'the scene'}: no georeference (scene custom property "
+            f"{names.CRS_PROP}): wrote sensors_local.geojson in the scene's metres only, no "
+            "sensors.geojson (WGS84) or plan.gpkg"
+        )
+        return files, note
+    files["sensors.geojson"] = _json(sensors_geojson_wgs84(result, georef))
+    files["plan.gpkg"] = plan_gpkg(result, georef)
+    return files, None
+
+
+def _json(doc: dict[str, Any]) -> str:
+    return json.dumps(doc, indent=2, allow_nan=False) + "\n"

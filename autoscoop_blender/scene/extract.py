@@ -24,6 +24,7 @@ from .. import names
 from ..core.errors import SceneContractError
 from ..core.model.scene import Area, SceneModel, area_from_rings, choose_origin
 from ..core.model.sensors import MAX_COORD_M, MAX_RANGE_M
+from ..io.georef import check_crs, check_offset
 
 F64 = NDArray[np.float64]
 
@@ -79,9 +80,12 @@ def extract_scene(
 ) -> SceneModel:
     """The SceneModel of a Blender scene (default: the context's), in local metres.
 
-    Raises SceneContractError naming the object for any contract violation.
+    Raises SceneContractError naming the object for any contract violation, and the
+    scene and property for a georeference (``names.CRS_PROP``, ``names.CRS_OFFSET_PROP``)
+    that is not one; that is checked first, before any work.
     """
     scene = scene or bpy.context.scene
+    crs, crs_offset = scene_georef(scene)
     depsgraph = depsgraph or bpy.context.evaluated_depsgraph_get()
     source = bpy.data.filepath and Path(bpy.data.filepath).name or scene.name
 
@@ -137,7 +141,21 @@ def extract_scene(
         source=source,
         warnings=tuple(warnings),
         ground_faces=None if ground.all() else ground,
+        crs=crs,
+        crs_offset=crs_offset,
     )
+
+
+def scene_georef(scene: bpy.types.Scene) -> tuple[str | None, tuple[float, float, float, float]]:
+    """The scene's CRS (None: none) and offset (x, y, z, hdg) from its custom
+    properties, checked with pyproj; SceneContractError naming the scene and the
+    property otherwise."""
+    where = f"scene {scene.name!r}"
+    if bpy.data.filepath:
+        where = f"{Path(bpy.data.filepath).name}, {where}"
+    crs = check_crs(scene.get(names.CRS_PROP), where, names.CRS_PROP)
+    offset = check_offset(scene.get(names.CRS_OFFSET_PROP), where, names.CRS_OFFSET_PROP)
+    return crs, offset
 
 
 def _area(obj: bpy.types.Object, rings: list[F64], origin: F64, with_height: bool = False) -> Area:

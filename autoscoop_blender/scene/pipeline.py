@@ -40,7 +40,7 @@ from ..core.settings import (
     settings_schema,
 )
 from ..io.figure import render_png
-from ..io.reports import coverage_dict, result_dict, sensors_csv, sensors_geojson
+from ..io.reports import coverage_dict, gis_files, result_dict, sensors_csv
 from .extract import (
     area_role,
     check_flat_rings,
@@ -308,8 +308,10 @@ def last_layout(scene: bpy.types.Scene) -> tuple[Result, dict[str, Any]] | None:
     return entry[0], entry[1]
 
 
-def export(scene: bpy.types.Scene, kind: str, folder: str) -> Path:
-    """Write one report (JSON, CSV, GEOJSON or PNG) of the last layout; its path."""
+def export(scene: bpy.types.Scene, kind: str, folder: str) -> tuple[list[Path], str | None]:
+    """Write one report (JSON, CSV, GEOJSON or PNG) of the last layout: its paths, and
+    a note when the scene has no CRS. GEOJSON writes sensors_local.geojson, and with
+    the scene's CRS also sensors.geojson (WGS84) and plan.gpkg (``reports.gis_files``)."""
     layout = last_layout(scene)
     if layout is None:
         raise InputError("no result in this session: run Optimize or Evaluate first")
@@ -318,14 +320,20 @@ def export(scene: bpy.types.Scene, kind: str, folder: str) -> Path:
     if not str(out).strip() or (not bpy.data.filepath and folder.startswith("//")):
         raise InputError("save the .blend file first, or choose an absolute export folder")
     out.mkdir(parents=True, exist_ok=True)
-    files = {
-        "JSON": ("result.json", lambda: json.dumps(doc, indent=2) + "\n"),
-        "CSV": ("sensors.csv", lambda: sensors_csv(result)),
-        "GEOJSON": ("sensors.geojson", lambda: json.dumps(sensors_geojson(result)) + "\n"),
-        "PNG": ("coverage.png", lambda: render_png(result)),
-    }
-    name, make = files[kind]
-    data = make()
-    path = out / name
-    path.write_bytes(data if isinstance(data, bytes) else data.encode("utf-8"))
-    return path
+    note = None
+    if kind == "GEOJSON":
+        data, note = gis_files(result)
+    else:
+        files = {
+            "JSON": ("result.json", lambda: json.dumps(doc, indent=2) + "\n"),
+            "CSV": ("sensors.csv", lambda: sensors_csv(result)),
+            "PNG": ("coverage.png", lambda: render_png(result)),
+        }
+        name, make = files[kind]
+        data = {name: make()}
+    paths = []
+    for name, content in data.items():
+        path = out / name
+        path.write_bytes(content if isinstance(content, bytes) else content.encode("utf-8"))
+        paths.append(path)
+    return paths, note

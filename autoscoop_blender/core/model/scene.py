@@ -52,6 +52,9 @@ class SceneModel:
     """What the core needs of a scene (local metres).
 
     vertices: (V, 3) float64; faces: (F, 3) int32 triangles into ``vertices``.
+    crs, crs_offset: the scene's georeference (``names.CRS_PROP``, checked; None: the
+    scene names no CRS) and offset (x, y, z, hdg). They place the scene's *world*
+    metres (local + ``origin``) in the CRS; the core never uses them.
     """
 
     vertices: NDArray[np.float64]
@@ -65,6 +68,8 @@ class SceneModel:
     # (F,) False for faces of overhangs (bridges, canopies): they occlude, but target
     # points and masts are not dropped onto them. None: every face is ground.
     ground_faces: NDArray[np.bool_] | None = None
+    crs: str | None = None
+    crs_offset: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
 
     def cropped(self, reach_m: float) -> SceneModel:
         """The scene without occluders that no sight line can meet: faces farther than
