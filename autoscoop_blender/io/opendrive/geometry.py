@@ -1,0 +1,226 @@
+"""The geometry of a road as ASAM OpenDRIVE defines it, evaluated on arrays of s.
+
+- Reference line (planView): ``line``; ``arc`` (constant curvature); ``spiral`` (a
+  clothoid: curvature linear in s from curvStart to curvEnd, positions from Fresnel
+  integrals, ``scipy.special.fresnel``, after completing the square of the heading, or
+  by Gauss-Legendre quadrature of the heading where the Fresnel arguments would be
+  huge, i.e. a nearly constant non-zero curvature); ``poly3`` (v = a + b u + c u^2 +
+  d u^3 in the local u, v frame of the start point, s mapped to u by arc length);
+  ``paramPoly3`` (u(p), v(p) cubics, p = ds for ``pRange="arcLength"``, ds / length
+  for ``normalized``).
+- Profiles: cubic records in s (elevation, superelevation, laneOffset) and in ds from
+  the lane section's start minus the record's sOffset (lane width, lane border).
+- A point at lateral t (metres along the road's left normal, in the tilted road
+  plane) lies at t*cos(phi) horizontally and elev + t*sin(phi) in height, phi the
+  superelevation (roll, radians).
+
+Not modelled: crossfall and lateral ``shape`` profiles, lane ``<height>`` records
+(kerbs, sidewalks raised a few cm) and lane ``level`` flags; the surface is the
+plane tilted by the superelevation.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.special import fresnel
+
+from .parse import Geometry, Lane, LaneSection, Poly, Road
+
+F64 = NDArray[np.float64]
+
+# Gauss-Legendre nodes on [0, 1] for the spiral fallback and arc-length tables.
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
+_GL_X = (_GL_X + 1.0) / 2.0
+_GL_W = _GL_W / 2.0
+# Fresnel arguments beyond this lose digits: the heading is integrated instead.
+_FRESNEL_MAX_ARG = 1.0e3
+
+
+def eval_polys(records: Sequence[Poly], s: F64, base: float = 0.0) -> F64:
+    """The piecewise cubic at s (records sorted by start; before the first record the
+    first applies). ``base`` is added to every record's start (a lane section's s)."""
+    s = np.asarray(s, dtype=np.float64)
+    if not records:
+        return np.zeros_like(s)
+    starts = np.array([r.s + base for r in records])
+    idx = np.clip(np.searchsorted(starts, s, side="right") - 1, 0, len(records) - 1)
+    coef = np.array([(r.a, r.b, r.c, r.d) for r in records])[idx]
+    ds = s - starts[idx]
+    return coef[..., 0] + ds * (coef[..., 1] + ds * (coef[..., 2] + ds * coef[..., 3]))
+
+
+def _cubic(c: Sequence[float], p: F64) -> F64:
+    return c[0] + p * (c[1] + p * (c[2] + p * c[3]))
+
+
+def _dcubic(c: Sequence[float], p: F64) -> F64:
+    return c[1] + p * (2.0 * c[2] + p * 3.0 * c[3])
+
+
+def _spiral_by_quadrature(k0: float, dk: float, length: float, ds: F64) -> tuple[F64, F64]:
+    """(x, y) of a clothoid from the origin with heading 0, by 8-point Gauss-Legendre
+    over cells in which the heading turns at most 0.1 rad."""
+    turn = abs(k0) * length + 0.5 * abs(dk) * length**2
+    n = int(min(max(np.ceil(turn / 0.1), np.ceil(length / 50.0), 1), 100_000))
+    edges = np.linspace(0.0, length, n + 1)
+
+    def heading(u: F64) -> F64:
+        return k0 * u + 0.5 * dk * u * u
+
+    def integral(a: F64, b: F64) -> tuple[F64, F64]:
+        u = a[:, None] + (b - a)[:, None] * _GL_X[None, :]
+        th = heading(u)
+        w = (b - a)[:, None] * _GL_W[None, :]
+        return (np.cos(th) * w).sum(axis=1), (np.sin(th) * w).sum(axis=1)
+
+    cx, cy = integral(edges[:-1], edges[1:])
+    cum_x = np.concatenate([[0.0], np.cumsum(cx)])
+    cum_y = np.concatenate([[0.0], np.cumsum(cy)])
+    cell = np.clip(np.searchsorted(edges, ds, side="right") - 1, 0, n - 1)
+    px, py = integral(edges[cell], ds)
+    return cum_x[cell] + px, cum_y[cell] + py
+
+
+def _spiral(k0: float, k1: float, length: float, ds: F64) -> tuple[F64, F64, F64]:
+    """Clothoid from the origin, heading 0: (x, y, heading) at ds."""
+    dk = (k1 - k0) / length if length > 0 else 0.0
+    head = k0 * ds + 0.5 * dk * ds * ds
+    if abs(dk) * max(length, 1.0) ** 3 < 1e-12:  # no measurable change: an arc
+        if abs(k0) < 1e-15:
+            return ds.copy(), np.zeros_like(ds), head
+        return np.sin(k0 * ds) / k0, (1.0 - np.cos(k0 * ds)) / k0, head
+    scale = np.sqrt(np.pi / abs(dk))
+    u0 = k0 / dk
+    t0 = u0 / scale
+    t1 = (ds + u0) / scale
+    if max(abs(t0), float(np.max(np.abs(t1), initial=0.0))) > _FRESNEL_MAX_ARG:
+        x, y = _spiral_by_quadrature(k0, dk, length, ds)
+        return x, y, head
+    # heading = phi0 + (dk/2) (u + u0)^2 = phi0 + sigma * pi/2 * t^2
+    sigma = np.sign(dk)
+    phi0 = -(k0 * k0) / (2.0 * dk)
+    s1, c1 = fresnel(t1)
+    s0, c0 = fresnel(t0)
+    dc, dsn = c1 - c0, s1 - s0
+    x = scale * (np.cos(phi0) * dc - sigma * np.sin(phi0) * dsn)
+    y = scale * (np.sin(phi0) * dc + sigma * np.cos(phi0) * dsn)
+    return x, y, head
+
+
+class ReferenceLine:
+    """The planView of one road: ``evaluate(s)`` gives x, y and heading."""
+
+    def __init__(self, geometries: Sequence[Geometry]):
+        self.geometries = list(geometries)
+        self.starts = np.array([g.s for g in self.geometries])
+        self._tables: dict[int, tuple[F64, F64]] = {}
+        for k, g in enumerate(self.geometries):
+            if g.kind == "poly3":
+                self._tables[k] = self._arc_length_table(g)
+
+    @staticmethod
+    def _arc_length_table(g: Geometry) -> tuple[F64, F64]:
+        """(s, u) pairs of a poly3: arc length along v(u) by Gauss-Legendre per cell."""
+        coef = g.params
+        # u runs at most the arc length; extend a little so the table covers the end.
+        u_max = max(g.length, 1e-9) * 1.05 + 1.0
+        n = int(min(max(np.ceil(u_max / 0.05), 64), 200_000))
+        edges = np.linspace(0.0, u_max, n + 1)
+        a, b = edges[:-1], edges[1:]
+        u = a[:, None] + (b - a)[:, None] * _GL_X[None, :]
+        speed = np.sqrt(1.0 + _dcubic(coef, u) ** 2)
+        cells = (speed * (b - a)[:, None] * _GL_W[None, :]).sum(axis=1)
+        s_tab = np.concatenate([[0.0], np.cumsum(cells)])
+        return s_tab, edges
+
+    def _local(self, k: int, ds: F64) -> tuple[F64, F64, F64]:
+        g = self.geometries[k]
+        p = g.params
+        if g.kind == "line":
+            return ds.copy(), np.zeros_like(ds), np.zeros_like(ds)
+        if g.kind == "arc":
+            return _spiral(p[0], p[0], g.length, ds)
+        if g.kind == "spiral":
+            return _spiral(p[0], p[1], g.length, ds)
+        if g.kind == "poly3":
+            s_tab, u_tab = self._tables[k]
+            u = np.interp(ds, s_tab, u_tab)
+            return u, _cubic(p, u), np.arctan(_dcubic(p, u))
+        # paramPoly3
+        q = ds / g.length if (p[8] and g.length > 0) else ds
+        cu, cv = p[0:4], p[4:8]
+        return _cubic(cu, q), _cubic(cv, q), np.arctan2(_dcubic(cv, q), _dcubic(cu, q))
+
+    def evaluate(self, s: F64) -> tuple[F64, F64, F64]:
+        """x, y, heading of the reference line at s (beyond a geometry's end the
+        last one that starts before s is extended)."""
+        s = np.asarray(s, dtype=np.float64)
+        idx = np.clip(np.searchsorted(self.starts, s, side="right") - 1, 0, len(self.starts) - 1)
+        x = np.empty_like(s)
+        y = np.empty_like(s)
+        h = np.empty_like(s)
+        for k in np.unique(idx):
+            sel = idx == k
+            g = self.geometries[int(k)]
+            u, v, dh = self._local(int(k), s[sel] - g.s)
+            c, sn = np.cos(g.hdg), np.sin(g.hdg)
+            x[sel] = g.x + c * u - sn * v
+            y[sel] = g.y + sn * u + c * v
+            h[sel] = g.hdg + dh
+        return x, y, h
+
+
+def lane_width(lane: Lane, section_s: float, s: F64) -> F64:
+    """The width of a lane with width records at s."""
+    return eval_polys(lane.widths, s, base=section_s)
+
+
+def section_borders(
+    road: Road, section: LaneSection, s: F64
+) -> tuple[dict[int, F64], dict[int, str]]:
+    """Lateral position t of every lane border at s: key 0 the lane reference line
+    (laneOffset), key i the outer border of lane i (cumulative widths outward).
+
+    Returns the borders and, per lane, a reason it cannot be built (empty if fine):
+    a lane with both width and border records is refused.
+    """
+    offset = eval_polys(road.lane_offsets, s)
+    borders: dict[int, F64] = {0: offset}
+    faults: dict[int, str] = {}
+    for side, lanes in ((1, section.left), (-1, section.right)):
+        inner = offset
+        for lane in lanes:
+            if lane.widths and lane.borders:
+                faults[lane.id] = "has both <width> and <border> records"
+            if lane.widths or not lane.borders:
+                outer = inner + side * lane_width(lane, section.s, s)
+            else:
+                value = eval_polys(lane.borders, s, base=section.s)
+                # The t of the outer border; written as a distance on the right, take
+                # the side's sign.
+                if side < 0 and np.all(value >= 0):
+                    value = -value
+                outer = offset + value
+            borders[lane.id] = outer
+            inner = outer
+    return borders, faults
+
+
+def second_derivative_bound(records: Sequence[Poly], lo: float, hi: float, base: float) -> float:
+    """A bound of |f''| on [lo, hi] for the records active there."""
+    if not records:
+        return 0.0
+    starts = [r.s + base for r in records]
+    bound = 0.0
+    for k, r in enumerate(records):
+        end = starts[k + 1] if k + 1 < len(records) else np.inf
+        if end <= lo and k + 1 < len(records):
+            continue
+        if starts[k] >= hi and k > 0:
+            continue
+        span = max(abs(hi - starts[k]), abs(lo - starts[k]))
+        bound = max(bound, 2.0 * abs(r.c) + 6.0 * abs(r.d) * span)
+    return bound
