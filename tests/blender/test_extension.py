@@ -291,11 +291,47 @@ def test_exports_write_every_report(tmp_path):
     assert doc == json.loads(props.result_json)
     rows = (tmp_path / "sensors.csv").read_text().splitlines()
     assert len(rows) == 1 + doc["metrics"]["sensors"]
-    geo = json.loads((tmp_path / "sensors.geojson").read_text())
+    # No CRS on flat_wall: the scene's metres only.
+    assert not (tmp_path / "sensors.geojson").exists() and not (tmp_path / "plan.gpkg").exists()
+    geo = json.loads((tmp_path / "sensors_local.geojson").read_text())
     assert (
         sum(f["properties"]["kind"] == "mast" for f in geo["features"]) == doc["metrics"]["masts"]
     )
     assert (tmp_path / "coverage.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_geojson_export_of_a_georeferenced_scene(tmp_path, monkeypatch):
+    """With the scene's CRS the GeoJSON export writes WGS84, local metres and plan.gpkg;
+    without one, only the local file, and the operator says so."""
+    props = _flat_wall()
+    bpy.context.scene[names.CRS_PROP] = "EPSG:3006"  # SWEREF99 TM
+    bpy.context.scene[names.CRS_OFFSET_PROP] = (330_000.0, 6_400_000.0, 0.0, 0.0)
+    bpy.ops.autoscoop.optimize()
+    props.export_dir = str(tmp_path / "geo")
+    assert bpy.ops.autoscoop.export(kind="GEOJSON") == {"FINISHED"}
+    written = sorted(p.name for p in (tmp_path / "geo").iterdir())
+    assert written == ["plan.gpkg", "sensors.geojson", "sensors_local.geojson"]
+    geo = json.loads((tmp_path / "geo" / "sensors.geojson").read_text())
+    lon, lat = geo["features"][0]["geometry"]["coordinates"]
+    # SWEREF99 TM: 170 km west of 15 E (2.85 deg at 57.7 N), 6,400 km north.
+    assert 11.9 < lon < 12.4 and 57.5 < lat < 58.0
+    assert (tmp_path / "geo" / "plan.gpkg").read_bytes()[:16] == b"SQLite format 3\x00"
+
+    del bpy.context.scene[names.CRS_PROP]
+    bpy.ops.autoscoop.optimize()
+    props.export_dir = str(tmp_path / "local")
+    notes = []
+    real = pipeline.export
+
+    def spy(*args):
+        paths, note = real(*args)
+        notes.append(note)
+        return paths, note
+
+    monkeypatch.setattr(pipeline, "export", spy)
+    assert bpy.ops.autoscoop.export(kind="GEOJSON") == {"FINISHED"}
+    assert [p.name for p in (tmp_path / "local").iterdir()] == ["sensors_local.geojson"]
+    assert notes and names.CRS_PROP in notes[0]
 
 
 def test_result_toggles_hide_groups():

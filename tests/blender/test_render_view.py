@@ -129,7 +129,8 @@ def test_render_leaves_result_blend_as_without_it(runs):
         folder, _, _ = runs[name]
         written = [p.name for p in folder.iterdir() if p.suffix != ".png"]
         assert sorted(n for n in written if n != ".autoscoop.lock") == [
-            "checkpoint.jsonl", "result.blend", "result.json", "sensors.csv", "sensors.geojson"
+            "checkpoint.jsonl", "result.blend", "result.json", "sensors.csv",
+            "sensors_local.geojson",
         ]  # fmt: skip
         bpy.ops.wm.open_mainfile(filepath=str(folder / "result.blend"))
         snapshots.append(_snapshot())

@@ -77,9 +77,15 @@ def test_output_files(default_run):
     for row, s in zip(rows, res["sensors"]):
         assert float(row["x"]) == pytest.approx(s["x"], abs=1e-3)
         assert int(row["mast"]) == s["mast"]
-    geo = json.loads((out / "sensors.geojson").read_text())
+    # two_routes names no CRS: the scene's metres only, and a note says so.
+    assert not (out / "sensors.geojson").exists() and not (out / "plan.gpkg").exists()
+    geo = json.loads((out / "sensors_local.geojson").read_text())
     kinds = [f["properties"]["kind"] for f in geo["features"]]
     assert kinds.count("mast") == len(res["masts"]) and kinds.count("footprint") == len(rows)
+    assert kinds.count("sensor") == len(rows)
+    mast = next(f for f in geo["features"] if f["properties"]["kind"] == "mast")
+    first = res["masts"][0]
+    assert mast["geometry"]["coordinates"] == [first["x"], first["y"], first["z_ground"]]
     png = (out / "coverage.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and zlib.crc32(png[12:29]) == int.from_bytes(png[29:33])
     lines = (out / "checkpoint.jsonl").read_text().splitlines()
