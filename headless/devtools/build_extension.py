@@ -21,8 +21,8 @@ Why it works this way:
   them anyway (``--split-platforms`` builds every platform the manifest names). The
   exact filenames are an output of pip for (pin, Python, platform tags); the pins live
   in one place, ``requirements-bundled.txt``, so bumping one needs no manifest edit.
-* Bundled: everything in ``requirements-bundled.txt`` (scipy, shapely, highspy,
-  matplotlib and what matplotlib needs). Not numpy: Blender ships it and ``bpy``
+* Bundled: everything in ``requirements-bundled.txt`` (scipy, shapely, highspy, pyproj
+  and certifi, matplotlib and what matplotlib needs). Not numpy: Blender ships it and ``bpy``
   depends on it, and a second copy would shadow Blender's.
 * Two Pythons: Blender 4.2 LTS to 5.0 run Python 3.11, Blender 5.1 and 5.2 run Python
   3.13, so each zip carries ``cp311`` and ``cp313`` wheels and Blender's installer

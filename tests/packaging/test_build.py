@@ -189,7 +189,7 @@ def test_zip_carries_every_pinned_wheel_for_both_pythons(linux_zip: Path, python
     fields = [bx.wheel_fields(w) for w in mine]
     assert sorted(f[0] for f in fields) == sorted(bundled_pins()), mine
     assert {f[0]: f[1] for f in fields} == bundled_pins()
-    assert {"matplotlib", "scipy", "shapely", "highspy", "pillow"} <= set(bundled_pins())
+    assert {"matplotlib", "scipy", "shapely", "highspy", "pillow", "pyproj"} <= set(bundled_pins())
     for w, (_, _, python_tags, platform_tags) in zip(mine, fields):
         assert python_tags in ((python,), ("py3",), ("py2", "py3")), w
         assert platform_tags == ("any",) or all(
@@ -283,7 +283,8 @@ def test_install_reports_success(installed: Installed) -> None:
 
 @on_linux_x64
 def test_installed_copy_imports_bundled_wheels(installed: Installed) -> None:
-    bundled = ("scipy", "shapely", "highspy", "matplotlib", "PIL", "contourpy", "kiwisolver")
+    bundled = ("scipy", "shapely", "highspy", "matplotlib", "PIL", "contourpy", "kiwisolver",
+               "pyproj")  # fmt: skip
     paths = run_in_installed(
         f"""
         import importlib, numpy
