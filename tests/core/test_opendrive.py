@@ -646,3 +646,15 @@ def test_lane_types_match_case_insensitively(tmp_path):
         "Target_shoulder_road1",
     ]
     assert result.lane_area_m2 == pytest.approx({"driving": 105.0, "shoulder": 60.0})
+
+
+def test_tight_constant_arc_area_is_sampled_finely(tmp_path):
+    """No profile varies here, so only the turn rule keeps chords close to the arc:
+    the annulus sectors' closed-form area within 0.5 %."""
+    r, theta = 30.0, 1.8 * math.pi
+    geo = geometry(0, 0, 0, 0, r * theta, f'<arc curvature="{1 / r}"/>')
+    result = build(tmp_path, xodr(road("1", r * theta, geo, simple_lanes(3.5, 4.0))))
+    # Left lane: radii r - 3.5 .. r; right lane: r .. r + 4.
+    expect = theta / 2 * ((r * r - (r - 3.5) ** 2) + ((r + 4.0) ** 2 - r * r))
+    assert result.targets[0].area_m2 == pytest.approx(expect, rel=0.005)
+    assert result.lane_area_m2["driving"] == pytest.approx(expect, rel=0.005)
