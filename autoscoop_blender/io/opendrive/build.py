@@ -257,6 +257,11 @@ def _build_road(road: Road, warnings: list[str]) -> _RoadParts | None:
     return parts
 
 
+# 2^-9 m (about 2 mm): multiples of it below 2^14 m (16 km, beyond the 10 km at which
+# the import shifts coordinates) are exact in float32's 24-bit mantissa.
+FLOAT32_GRID_M = 2.0**-9
+
+
 def _clean(geom: BaseGeometry, min_part: float, min_hole: float) -> Polygon | MultiPolygon:
     """Valid polygons without parts under ``min_part`` or holes under ``min_hole`` m^2."""
     geom = _polygonal(geom if geom.is_valid else shapely.make_valid(geom))
@@ -269,7 +274,9 @@ def _clean(geom: BaseGeometry, min_part: float, min_hole: float) -> Polygon | Mu
         kept.append(Polygon(poly.exterior, holes))
     if not kept:
         return Polygon()
-    out = shapely.union_all(kept)
+    # Snapped to a grid that float32 holds exactly (Blender keeps curve points in
+    # float32): a ring simple in float64 may otherwise touch itself once rounded.
+    out = shapely.set_precision(shapely.union_all(kept), FLOAT32_GRID_M)
     return _polygonal(out)
 
 
