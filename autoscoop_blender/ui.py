@@ -55,6 +55,7 @@ class AUTOSCOOP_PT_scene(_Panel, bpy.types.Panel):
         row.operator(names.OP_MARK, text="Camera as Sensor").role = names.ROLE_SENSOR
         row.operator(names.OP_MARK, text="Unmark").role = names.ROLE_NONE
         layout.operator(names.OP_CHECK, icon="VIEWZOOM")
+        layout.operator(names.OP_IMPORT_XODR, text="Import OpenDRIVE...", icon="IMPORT")
         check = context.scene.autoscoop.check_text
         for line in check.splitlines():
             row = layout.row()

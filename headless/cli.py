@@ -6,7 +6,8 @@ A user mistake (``AutoscoopError``) prints one line ``error: <object>: <problem>
 stderr and writes nothing; warnings print as ``warning: ...`` and the job goes on.
 The options that set a knob are generated from the settings schema
 (``core/settings.py``: its ``flag``, type, choices and help). The users' commands run
-in ``jobs``; ``build``, ``samples`` and ``bench`` are developer tools in ``devtools``.
+in ``jobs`` (``import-xodr`` in ``xodr``); ``build``, ``samples`` and ``bench`` are
+developer tools in ``devtools``.
 """
 
 from __future__ import annotations
@@ -99,6 +100,28 @@ def build_parser() -> argparse.ArgumentParser:
         "Blender (Workbench, a few seconds)",
     )
 
+    imp = sub.add_parser(
+        "import-xodr", help="an OpenDRIVE file -> a .blend with roads, target and sensor areas"
+    )
+    imp.add_argument("file", help="OpenDRIVE file (.xodr)")
+    imp.add_argument("--out", required=True, help="the .blend to write")
+    imp.add_argument(
+        "--lanes",
+        default="driving",
+        help="lane types that become target areas, comma-separated (default driving)",
+    )
+    imp.add_argument(
+        "--band",
+        default="1:6",
+        help="sensor areas: INNER:OUTER metres outside the outermost lane border (default 1:6)",
+    )
+    imp.add_argument(
+        "--terrain",
+        choices=("flat", "none"),
+        default="flat",
+        help="flat: a ground just below the lowest road (default); none: roads only",
+    )
+
     bld = sub.add_parser("build", help="build the extension zips (one per platform)")
     bld.add_argument("--out-dir", default="dist", help="default dist/")
     bld.add_argument(
@@ -149,6 +172,7 @@ def main(argv: list[str] | None = None) -> int:
     handlers: dict[str, Callable[[argparse.Namespace], int]] = {
         "coverage": _coverage,
         "optimize": _optimize,
+        "import-xodr": _import_xodr,
         "build": _build,
         "samples": _samples,
         "bench": _bench,
@@ -178,6 +202,12 @@ def _optimize(args: argparse.Namespace) -> int:
     from headless import jobs
 
     return jobs.optimize(args)
+
+
+def _import_xodr(args: argparse.Namespace) -> int:
+    from headless import xodr
+
+    return xodr.import_xodr(args)
 
 
 def _build(args: argparse.Namespace) -> int:
