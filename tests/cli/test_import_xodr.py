@@ -70,16 +70,16 @@ def test_the_geojson_is_wgs84_at_the_site(plan):
     assert "crs" not in world  # RFC 7946: WGS84 longitude, latitude
     to_wgs84 = Transformer.from_crs(FLEX_CRS, "EPSG:4326", always_xy=True)
     pairs = [
-        (w, l)
-        for w, l in zip(world["features"], local["features"], strict=True)
+        (w, here)
+        for w, here in zip(world["features"], local["features"], strict=True)
         if w["properties"]["kind"] == "mast"
     ]
     assert pairs
-    for w, l in pairs:
+    for w, here in pairs:
         lon, lat = w["geometry"]["coordinates"][:2]
         assert 12.76 < lon < 12.78 and 57.77 < lat < 57.78
         # The file's inertial metres are the scene's (no offset, no shift here).
-        x, y = l["geometry"]["coordinates"][:2]
+        x, y = here["geometry"]["coordinates"][:2]
         assert to_wgs84.transform(x, y) == pytest.approx((lon, lat), abs=1e-7)
 
 
