@@ -32,6 +32,9 @@ CRS_OFFSET_PROP = "autoscoop_crs_offset"  # (x, y, z, hdg): metres, metres, metr
 # On objects made by the OpenDRIVE import: where they came from.
 XODR_ROAD_PROP = "autoscoop_xodr_road"  # the road id (a string, as in the file)
 XODR_LANES_PROP = "autoscoop_xodr_lanes"  # the lane type(s), e.g. "driving"
+# On the scene: an OpenDRIVE header's geoReference that PROJ cannot read (kept as
+# given, for the record; the scene then has no CRS).
+XODR_GEOREF_PROP = "autoscoop_xodr_georeference"
 
 # Everything AutoSCOOP creates goes into this collection and nowhere else.
 RESULTS_COLLECTION = "AutoSCOOP Results"

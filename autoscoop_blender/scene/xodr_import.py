@@ -30,9 +30,10 @@ import shapely
 from numpy.typing import NDArray
 
 from .. import names
-from ..core.errors import InputError
+from ..core.errors import InputError, SceneContractError
 from ..core.model.scene import area_from_rings
-from ..io.opendrive import AreaRings, ImportedNetwork, SurfaceMesh, build_import, read_opendrive
+from ..io.georef import check_crs
+from ..io.opendrive import AreaRings, SurfaceMesh, build_import, read_opendrive
 
 # Viewport colours (solid mode, "Object" colour): asphalt, grass.
 _ROAD_COLOUR = (0.25, 0.25, 0.27, 1.0)
@@ -59,7 +60,7 @@ class ImportSummary:
 
     def text(self) -> str:
         """One line for a report."""
-        crs = "georeferenced" if self.crs else "no CRS in the file"
+        crs = "georeferenced" if self.crs else "no CRS"
         return (
             f"{self.roads} roads, {self.targets} target areas covering {self.target_m2:,.0f} "
             f"m^2 (lanes {self.lane_m2:,.0f} m^2 summed road by road), {self.sensor_areas} "
@@ -102,7 +103,9 @@ def import_xodr(
     scene = scene or bpy.context.scene
     network = read_opendrive(path)
     imported = build_import(network, tuple(lane_types), band, terrain)
-    _check_georeference(scene, imported, Path(path).name)
+    warnings = list(imported.warnings)
+    crs = _usable_crs(imported.crs, Path(path).name, warnings)
+    _check_georeference(scene, crs, imported.crs_offset, Path(path).name)
 
     stem = Path(path).stem
     top = _collection(f"OpenDRIVE {stem}", scene.collection)
@@ -118,9 +121,11 @@ def import_xodr(
         _curve_object(area, targets)
     for area in imported.sensor_areas:
         _curve_object(area, sensors)
-    if imported.crs:
-        scene[names.CRS_PROP] = imported.crs
-    if imported.crs or any(imported.crs_offset):
+    if crs:
+        scene[names.CRS_PROP] = crs
+    elif imported.crs:
+        scene[names.XODR_GEOREF_PROP] = imported.crs
+    if crs or any(imported.crs_offset):
         scene[names.CRS_OFFSET_PROP] = [float(v) for v in imported.crs_offset]
     return ImportSummary(
         collection=top.name,
@@ -130,8 +135,8 @@ def import_xodr(
         lane_m2=sum(imported.lane_area_m2.values()),
         sensor_areas=len(imported.sensor_areas),
         sensor_area_m2=_union_m2(imported.sensor_areas),
-        crs=imported.crs,
-        warnings=tuple(imported.warnings),
+        crs=crs,
+        warnings=tuple(warnings),
         seconds=time.perf_counter() - t0,
     )
 
@@ -143,17 +148,41 @@ def _union_m2(areas: Sequence[AreaRings]) -> float:
     return float(shapely.union_all([area_from_rings(a.name, a.rings) for a in areas]).area)
 
 
-def _check_georeference(scene: bpy.types.Scene, imported: ImportedNetwork, file: str) -> None:
+def _usable_crs(text: str | None, file: str, warnings: list[str]) -> str | None:
+    """The header's geoReference if PROJ reads it as a projected CRS in metres; else
+    None, with a warning saying why (CARLA's towns give "+lat_0=49 +lon_0=8", with no
+    projection named)."""
+    if text is None:
+        return None
+    try:
+        return check_crs(text, file, "geoReference")
+    except SceneContractError:
+        shown = " ".join(text.split())
+        shown = shown if len(shown) <= 80 else shown[:77] + "..."
+        warnings.append(
+            f"{file}: the header's geoReference {shown!r} is not a projected CRS that PROJ "
+            f"reads: the scene gets no CRS (kept as {names.XODR_GEOREF_PROP}); outputs stay "
+            "in scene metres"
+        )
+        return None
+
+
+def _check_georeference(
+    scene: bpy.types.Scene,
+    crs: str | None,
+    offset: tuple[float, float, float, float],
+    file: str,
+) -> None:
     """InputError when the scene already sits in another CRS, or elsewhere in the same
     one: the two would not line up."""
-    crs = scene.get(names.CRS_PROP)
-    if crs is not None and imported.crs is not None and str(crs) != imported.crs:
+    have = scene.get(names.CRS_PROP)
+    if have is not None and crs is not None and str(have) != crs:
         raise InputError(
             f"{file}: its CRS differs from scene {scene.name!r}'s ({names.CRS_PROP}); "
             "import it into a new scene"
         )
-    offset = scene.get(names.CRS_OFFSET_PROP)
-    if offset is not None and not np.allclose(list(offset), imported.crs_offset, atol=1e-6):
+    have_offset = scene.get(names.CRS_OFFSET_PROP)
+    if have_offset is not None and not np.allclose(list(have_offset), offset, atol=1e-6):
         raise InputError(
             f"{file}: its coordinates are offset otherwise than scene {scene.name!r}'s "
             f"({names.CRS_OFFSET_PROP}); import it into a new scene"

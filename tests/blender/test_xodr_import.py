@@ -127,3 +127,12 @@ def test_the_flat_ground_lies_under_every_road():
             assert co[:, 2].min() > gz - 1e-3
             assert ground_box.contains(shapely.MultiPoint(co[:, :2]))
     assert not math.isnan(gz)
+
+
+def test_a_georeference_proj_cannot_read_leaves_the_scene_without_crs():
+    # CARLA's towns name an origin but no projection: "+lat_0=49 +lon_0=8".
+    _import(XODR / "Town01.xodr")
+    scene = bpy.context.scene
+    assert names.CRS_PROP not in scene and names.CRS_OFFSET_PROP not in scene
+    assert scene[names.XODR_GEOREF_PROP].startswith("+lat_0=4.9")
+    assert extract_scene().crs is None
