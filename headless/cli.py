@@ -140,9 +140,10 @@ def build_parser() -> argparse.ArgumentParser:
         "what",
         nargs="?",
         default="all",
-        choices=("all", "coverage", "optimize", "scaling", "bound"),
+        choices=("all", "coverage", "optimize", "scaling", "bound", "xodr"),
         help="all (default): speed/accuracy, optimizer runs, stability, scaling, bounds, "
-        "ES vs paper -> bench/results.json and charts; scaling, bound: that section only",
+        "ES vs paper -> bench/results.json and charts; scaling, bound: that section only; "
+        "xodr: import and plan each OpenDRIVE file of tests/data/xodr -> bench/xodr.json",
     )
     bench.add_argument("--quick", action="store_true", help="all, scaling, bound: quicker")
     bench.add_argument("--scene", default=str(SAMPLES / "two_routes.blend"))

@@ -25,7 +25,11 @@ from headless.files import json_text, load_scene
 
 
 def main(args: argparse.Namespace) -> int:
-    """``bench [all|coverage|optimize|scaling|bound]``."""
+    """``bench [all|coverage|optimize|scaling|bound|xodr]``."""
+    if args.what == "xodr":
+        from headless.devtools import xodr_bench
+
+        return xodr_bench.run(args)
     if args.what == "coverage":
         return coverage(args)
     if args.what == "optimize":
