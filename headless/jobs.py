@@ -7,8 +7,6 @@ import os
 import sys
 import tempfile
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -30,7 +28,7 @@ from autoscoop_blender.io.reports import (
 )
 from autoscoop_blender.io.sensor_file import read_sensors
 from headless.checkpoint import Checkpoint, checkpoint_header
-from headless.files import csv_text, json_text, load_scene, write_files
+from headless.files import csv_text, json_text, load_scene, quiet_fds, write_files
 from headless.lock import OutDirLock
 from headless.paths import SAMPLES
 from headless.progress import ProgressBar
@@ -175,7 +173,8 @@ def write_results(result: Result, out_dir: Path, render: bool = False) -> None:
     out_dir.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=out_dir) as tmp:
         blend = Path(tmp) / "result.blend"
-        bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True, compress=True)
+        with quiet_fds():  # Blender's "Info: Saved copy as ..." is not ours to print
+            bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True, compress=True)
         files[out_dir / "result.blend"] = blend.read_bytes()
     if render:
         files[out_dir / "result_view.png"] = render_view_png(bpy.context.scene)
@@ -197,7 +196,7 @@ def render_view_png(scene: Any) -> bytes:
 
     start = time.perf_counter()
     try:
-        with _quiet_fds() as chatter:
+        with quiet_fds() as chatter:
             png = render_view(scene)
     except RuntimeError as e:
         sys.stderr.write("".join(chatter))
@@ -210,28 +209,3 @@ def render_view_png(scene: Any) -> bytes:
         file=sys.stderr,
     )
     return png
-
-
-@contextmanager
-def _quiet_fds() -> Iterator[list[str]]:
-    """Send file descriptors 1 and 2 to a temporary file (Blender's C code writes to
-    them directly, past ``sys.stdout``); yields a list that holds what was written once
-    the block has ended."""
-    chatter: list[str] = []
-    sys.stdout.flush()
-    sys.stderr.flush()
-    saved = [os.dup(1), os.dup(2)]
-    with tempfile.TemporaryFile() as sink:
-        os.dup2(sink.fileno(), 1)
-        os.dup2(sink.fileno(), 2)
-        try:
-            yield chatter
-        finally:
-            sys.stdout.flush()
-            sys.stderr.flush()
-            os.dup2(saved[0], 1)
-            os.dup2(saved[1], 2)
-            for fd in saved:
-                os.close(fd)
-            sink.seek(0)
-            chatter.append(sink.read().decode("utf-8", "replace"))

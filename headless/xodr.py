@@ -8,8 +8,7 @@ import tempfile
 from pathlib import Path
 
 from autoscoop_blender.core.errors import InputError
-from headless.files import write_files
-from headless.jobs import _quiet_fds
+from headless.files import quiet_fds, write_files
 
 # Warnings printed one by one; the rest are counted.
 SHOWN_WARNINGS = 20
@@ -41,7 +40,7 @@ def import_xodr(args: argparse.Namespace) -> int:
         staging = tempfile.TemporaryDirectory()
     with staging as tmp:
         blend = Path(tmp) / out.name
-        with _quiet_fds():  # Blender's "Info: Saved as ..." is not ours to print
+        with quiet_fds():  # Blender's "Info: Saved as ..." is not ours to print
             bpy.ops.wm.save_as_mainfile(filepath=str(blend), compress=True)
         write_files({out: blend.read_bytes()})
     print(f"{Path(args.file).name}: {summary.text()} -> {out}")
