@@ -21,7 +21,9 @@ from typing import Any
 
 import shapely
 
+from autoscoop_blender.core.errors import SceneContractError
 from autoscoop_blender.core.model.scene import area_from_rings
+from autoscoop_blender.io.georef import check_crs
 from autoscoop_blender.io.opendrive import build_import, read_opendrive
 from headless.devtools.machine import machine_line
 from headless.files import json_text
@@ -48,6 +50,14 @@ def run(args: argparse.Namespace) -> int:
     out_dir.mkdir(parents=True, exist_ok=True)
     (out_dir / "xodr.json").write_text(json_text(figures))
     return 0
+
+
+def _usable(crs: str | None) -> bool:
+    """Whether the header's geoReference is a CRS the outputs can use."""
+    try:
+        return check_crs(crs, "bench", "geoReference") is not None
+    except SceneContractError:
+        return False
 
 
 def _headless(*args: Any) -> subprocess.CompletedProcess[str]:
@@ -78,7 +88,7 @@ def _file_row(name: str, tmp: Path) -> dict[str, Any]:
         "lanes_m2": round(sum(imported.lane_area_m2.values()), 1),
         "sensor_areas": len(imported.sensor_areas),
         "sensor_area_m2": round(bands.area, 1),
-        "crs": imported.crs is not None,
+        "crs": _usable(imported.crs),
         "warnings": len(imported.warnings),
         "runs": [],
     }
