@@ -2,8 +2,9 @@
 
 The scene contract lives here and nowhere else: a curve whose name starts with
 ``Target`` is a target area, one whose name starts with ``SensorArea`` is a sensor
-area (both case-insensitive, ``Sensor_Area`` and ``Sensor-Area`` too), and every other
-visible mesh occludes. The panel can mark curves explicitly through ``ROLE_PROP``.
+area (both case-insensitive, ``Sensor_Area`` and ``Sensor-Area`` too), one whose name
+starts with ``NoMast`` cuts a hole in the sensor areas, and every other visible mesh
+occludes. The panel can mark curves explicitly through ``ROLE_PROP``.
 """
 
 import re
@@ -11,16 +12,22 @@ import re
 # Object-name prefixes of the scene contract, matched case-insensitively.
 TARGET_RE = re.compile(r"^target", re.IGNORECASE)
 SENSOR_AREA_RE = re.compile(r"^sensor[ _-]?area", re.IGNORECASE)
+NO_MAST_RE = re.compile(r"^no[ _-]?mast", re.IGNORECASE)
 
 # Custom properties a user (or the panel) may set on objects.
 ROLE_PROP = "autoscoop_role"  # marks an object explicitly, whatever its name
 ROLE_TARGET = "target"  # a curve: target area
 ROLE_SENSOR_AREA = "sensor_area"  # a curve: sensor area
+ROLE_NO_MAST = "no_mast"  # a curve: a hole in the sensor areas (escape lane, pipeline)
 ROLE_SENSOR = "sensor"  # a camera: a sensor to evaluate
 ROLE_NONE = "none"  # unmarked: not an area even if the name says so
 IGNORE_PROP = "autoscoop_ignore"  # True: the mesh does not occlude
 OVERHANG_PROP = "autoscoop_overhang"  # True: occludes, but nothing stands on it
 HEIGHT_PROP = "height_m"  # on a sensor area: mast height there, metres
+# On a target area: what its points require (issue 16's planners' requirements).
+COVERAGE_K_PROP = "coverage_k"  # int >= 1: sensors that must see each point
+DORI_PROP = "dori"  # "detect", "observe", "recognise" or "identify": camera px/m
+REQUIRE_PROP = "require"  # a sensor kind ("camera", "lidar", "radar") that must see it
 
 # Georeference, on the Blender scene (set by the OpenDRIVE import, or by hand): the
 # projected CRS of the scene's world metres, and where the scene sits in it. A scene

@@ -146,6 +146,7 @@ class AUTOSCOOP_OT_mark(bpy.types.Operator):
         items=[
             (names.ROLE_TARGET, "Target area", "Selected curves: roads to watch"),
             (names.ROLE_SENSOR_AREA, "Sensor area", "Selected curves: where masts may stand"),
+            (names.ROLE_NO_MAST, "No-mast zone", "Selected curves: where masts may not stand"),
             (names.ROLE_SENSOR, "Sensor", "Selected cameras: sensors to evaluate"),
             (names.ROLE_NONE, "Unmark", "Selected objects: no role, whatever their name"),
         ],

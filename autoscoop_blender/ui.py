@@ -35,9 +35,12 @@ class AUTOSCOOP_PT_scene(_Panel, bpy.types.Panel):
         for role, title in (
             (names.ROLE_TARGET, "Target areas"),
             (names.ROLE_SENSOR_AREA, "Sensor areas"),
+            (names.ROLE_NO_MAST, "No-mast zones"),
         ):
-            box = layout.box()
             mine = [r for r in rows if r[0] == role]
+            if role == names.ROLE_NO_MAST and not mine:
+                continue  # optional: shown only when there is one
+            box = layout.box()
             box.label(text=f"{title}: {len(mine)}")
             if not mine:
                 line = box.row()
@@ -51,6 +54,7 @@ class AUTOSCOOP_PT_scene(_Panel, bpy.types.Panel):
         row = col.row(align=True)
         row.operator(names.OP_MARK, text="Target").role = names.ROLE_TARGET
         row.operator(names.OP_MARK, text="Sensor Area").role = names.ROLE_SENSOR_AREA
+        row.operator(names.OP_MARK, text="No Mast").role = names.ROLE_NO_MAST
         row = col.row(align=True)
         row.operator(names.OP_MARK, text="Camera as Sensor").role = names.ROLE_SENSOR
         row.operator(names.OP_MARK, text="Unmark").role = names.ROLE_NONE

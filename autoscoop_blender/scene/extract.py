@@ -11,19 +11,21 @@ results collection.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
+from dataclasses import replace
 from pathlib import Path
 
 import bpy
 import numpy as np
+import shapely
 from mathutils import Vector
 from mathutils.bvhtree import BVHTree
 from numpy.typing import NDArray
 
 from .. import names
 from ..core.errors import SceneContractError
-from ..core.model.scene import Area, SceneModel, area_from_rings, choose_origin
-from ..core.model.sensors import MAX_COORD_M, MAX_RANGE_M
+from ..core.model.scene import Area, SceneModel, area_from_rings, choose_origin, polygonal_part
+from ..core.model.sensors import DORI_PX_PER_M, KINDS, MAX_COORD_M, MAX_RANGE_M
 from ..io.georef import check_crs, check_offset
 
 F64 = NDArray[np.float64]
@@ -45,9 +47,10 @@ _ON_SURFACE_M = 0.25
 
 
 def area_role(obj: bpy.types.Object) -> str | None:
-    """``names.ROLE_TARGET``, ``names.ROLE_SENSOR_AREA`` or None for an object."""
+    """``names.ROLE_TARGET``, ``names.ROLE_SENSOR_AREA``, ``names.ROLE_NO_MAST`` or
+    None for an object."""
     role = obj.get(names.ROLE_PROP)
-    if role in (names.ROLE_TARGET, names.ROLE_SENSOR_AREA):
+    if role in (names.ROLE_TARGET, names.ROLE_SENSOR_AREA, names.ROLE_NO_MAST):
         return role
     if role in (names.ROLE_NONE, names.ROLE_SENSOR):
         return None
@@ -55,6 +58,8 @@ def area_role(obj: bpy.types.Object) -> str | None:
         return names.ROLE_TARGET
     if names.SENSOR_AREA_RE.match(obj.name):
         return names.ROLE_SENSOR_AREA
+    if names.NO_MAST_RE.match(obj.name):
+        return names.ROLE_NO_MAST
     return None
 
 
@@ -90,19 +95,23 @@ def extract_scene(
     source = bpy.data.filepath and Path(bpy.data.filepath).name or scene.name
 
     results = results_collections()
-    target_rings: list[tuple[bpy.types.Object, list[F64]]] = []
-    sensor_rings: list[tuple[bpy.types.Object, list[F64]]] = []
+    rings_of: dict[str, list[tuple[bpy.types.Object, list[F64]]]] = {
+        names.ROLE_TARGET: [],
+        names.ROLE_SENSOR_AREA: [],
+        names.ROLE_NO_MAST: [],
+    }
     for obj in scene.objects:
         role = area_role(obj)
         if role is None or in_results(obj, results):
             continue
         if obj.type != "CURVE":
-            kind = "target area" if role == names.ROLE_TARGET else "sensor area"
             raise SceneContractError(
-                f"{obj.name}: is a {obj.type.lower()}, but a {kind} must be a curve"
+                f"{obj.name}: is a {obj.type.lower()}, but a {_ROLE_WORDS[role]} must be a curve"
             )
-        rings = curve_rings(obj)
-        (target_rings if role == names.ROLE_TARGET else sensor_rings).append((obj, rings))
+        rings_of[role].append((obj, curve_rings(obj)))
+    target_rings = rings_of[names.ROLE_TARGET]
+    sensor_rings = rings_of[names.ROLE_SENSOR_AREA]
+    no_mast_rings = rings_of[names.ROLE_NO_MAST]
     if not target_rings:
         raise SceneContractError(
             f"{source}: no target area (a closed curve named 'Target...' or marked "
@@ -116,14 +125,16 @@ def extract_scene(
 
     all_pts = np.concatenate([r for _, rings in target_rings + sensor_rings for r in rings])
     origin = choose_origin(all_pts)
-    targets = tuple(_area(obj, rings, origin) for obj, rings in target_rings)
+    targets = tuple(_target_area(obj, rings, origin) for obj, rings in target_rings)
     sensors = tuple(_area(obj, rings, origin, with_height=True) for obj, rings in sensor_rings)
+    no_mast = tuple(_area(obj, rings, origin) for obj, rings in no_mast_rings)
+    sensors = _without_no_mast(sensors, no_mast, source)
 
     vertices, faces, occluders, ground = occluder_mesh(depsgraph, results)
     vertices = vertices - origin
     # Tilted areas last: whether a ring follows the terrain depends on the occluders.
     surface = _Surface(lambda: (vertices, faces))
-    for obj, rings in target_rings + sensor_rings:
+    for obj, rings in target_rings + sensor_rings + no_mast_rings:
         check_flat_rings(obj, rings, surface, origin)
     warnings: list[str] = []
     if not occluders:
@@ -143,6 +154,7 @@ def extract_scene(
         ground_faces=None if ground.all() else ground,
         crs=crs,
         crs_offset=crs_offset,
+        no_mast=no_mast,
     )
 
 
@@ -156,6 +168,72 @@ def scene_georef(scene: bpy.types.Scene) -> tuple[str | None, tuple[float, float
     crs = check_crs(scene.get(names.CRS_PROP), where, names.CRS_PROP)
     offset = check_offset(scene.get(names.CRS_OFFSET_PROP), where, names.CRS_OFFSET_PROP)
     return crs, offset
+
+
+# The most sensors a target area may ask to see each point (a junction needing 3 is
+# already a rare demand; more would mean a plan of several times the sensors).
+MAX_COVERAGE_K = 10
+
+_ROLE_WORDS = {
+    names.ROLE_TARGET: "target area",
+    names.ROLE_SENSOR_AREA: "sensor area",
+    names.ROLE_NO_MAST: "no-mast zone",
+}
+
+
+def _without_no_mast(
+    sensors: tuple[Area, ...], no_mast: tuple[Area, ...], source: str
+) -> tuple[Area, ...]:
+    """The sensor areas less the no-mast zones; an area wholly inside them is left out.
+    SceneContractError when none is left."""
+    if not no_mast:
+        return sensors
+    holes = shapely.union_all([z.geometry for z in no_mast])
+    kept = []
+    for area in sensors:
+        rest = polygonal_part(area.geometry.difference(holes))
+        if rest.area > 1e-6:
+            kept.append(replace(area, geometry=rest))
+    if not kept:
+        zones = ", ".join(z.name for z in no_mast)
+        raise SceneContractError(
+            f"{source}: every sensor area lies inside the no-mast zones ({zones})"
+        )
+    return tuple(kept)
+
+
+def _target_area(obj: bpy.types.Object, rings: list[F64], origin: F64) -> Area:
+    """A target area with its requirements (``names.COVERAGE_K_PROP``, ``DORI_PROP``,
+    ``REQUIRE_PROP``); SceneContractError naming the curve and property for a value
+    that is not one."""
+    area = _area(obj, rings, origin)
+    k = obj.get(names.COVERAGE_K_PROP)
+    if k is not None:
+        if isinstance(k, bool) or not isinstance(k, int) or not 1 <= k <= MAX_COVERAGE_K:
+            raise SceneContractError(
+                f"{obj.name}: custom property {names.COVERAGE_K_PROP} must be a whole number "
+                f"from 1 to {MAX_COVERAGE_K} (sensors that must see each point), got {k!r}"
+            )
+    dori = _choice(obj, names.DORI_PROP, DORI_PX_PER_M, "DORI level")
+    require = _choice(obj, names.REQUIRE_PROP, KINDS, "sensor kind")
+    return replace(area, coverage_k=k, dori=dori, require=require)
+
+
+def _choice(obj: bpy.types.Object, prop: str, allowed: Iterable[str], what: str) -> str | None:
+    """A custom property that names one of ``allowed`` (case-insensitive), or None."""
+    value = obj.get(prop)
+    if value is None:
+        return None
+    options = list(allowed)
+    text = value.strip().lower() if isinstance(value, str) else None
+    if text == "recognize":  # the American spelling of the DORI level
+        text = "recognise"
+    if text not in options:
+        raise SceneContractError(
+            f"{obj.name}: custom property {prop} must be a {what}: one of "
+            f"{', '.join(options)}; got {value!r}"
+        )
+    return text
 
 
 def _area(obj: bpy.types.Object, rings: list[F64], origin: F64, with_height: bool = False) -> Area:

@@ -5,11 +5,16 @@ import math
 import bpy
 import numpy as np
 import pytest
+import shapely
 
 from autoscoop_blender import names
 from autoscoop_blender.core.errors import SceneContractError
+from autoscoop_blender.core.model.sensors import PAPER_CAMERA
+from autoscoop_blender.core.problem import Problem
+from autoscoop_blender.core.settings import OptimizeSettings
 from autoscoop_blender.scene import pipeline
 from autoscoop_blender.scene.extract import extract_scene
+from autoscoop_blender.scene.factory import BVHFactory
 from tests.blender import builders as b
 
 
@@ -280,3 +285,69 @@ def test_a_tilted_curve_far_from_the_origin():
     for p in target.data.splines[0].points:
         p.co.z = 0.0
     assert extract_scene().targets[0].area_m2 == pytest.approx(1000.0, rel=1e-5)
+
+
+# --- no-mast zones and target requirements (issue 16) ----------------------------------
+
+
+def test_a_no_mast_zone_cuts_a_hole_in_the_sensor_areas():
+    b.plane("Ground", -50, -50, 50, 50)
+    b.curve("Target", [b.rect(0, 20, 10, 30)])
+    b.curve("SensorArea_Long", [b.rect(0, 0, 20, 10)])  # 200 m^2
+    b.curve("SensorArea_Gone", [b.rect(30, 0, 34, 4)])  # wholly inside the second zone
+    b.curve("NoMast_Pipeline", [b.rect(5, -5, 10, 15)])  # 5 m x 10 m of the first
+    b.curve("No_Mast_Yard", [b.rect(29, -1, 35, 5)])
+    scene = extract_scene()
+    areas = {a.name: a for a in scene.sensor_areas}
+    assert list(areas) == ["SensorArea_Long"]
+    long = areas["SensorArea_Long"].geometry
+    assert long.area == pytest.approx(200.0 - 50.0)
+    assert not long.contains(shapely.Point(7.5, 5.0)) and long.contains(shapely.Point(2, 5))
+    assert sorted(z.name for z in scene.no_mast) == ["NoMast_Pipeline", "No_Mast_Yard"]
+    # The zones are not occluders, nor targets.
+    assert not {"NoMast_Pipeline", "No_Mast_Yard"} & set(scene.occluders)
+    # Every mast position of a run stands outside the zones (on their edge at most:
+    # x = 10 is the lattice line the first zone ends on).
+    problem = Problem(
+        scene, BVHFactory.of(scene)(), PAPER_CAMERA, OptimizeSettings(optimizer="greedy")
+    )
+    xy = problem.space.positions + scene.origin[:2]
+    assert sorted(set(xy[:, 0])) == [0, 2, 4, 10, 12, 14, 16, 18, 20]
+    assert len(xy) and not shapely.contains_xy(
+        shapely.union_all([z.geometry for z in scene.no_mast]), xy[:, 0], xy[:, 1]
+    ).any()
+
+
+def test_no_sensor_area_left_outside_the_zones():
+    def build():
+        b.curve("Target", [b.rect(0, 20, 10, 30)])
+        b.curve("SensorArea", [b.rect(0, 0, 4, 4)])
+        b.curve("NoMast", [b.rect(-1, -1, 5, 5)])
+
+    assert _err(build).endswith("every sensor area lies inside the no-mast zones (NoMast)")
+
+
+def test_target_requirements_are_read_and_checked():
+    b.curve("Target_Junction", [b.rect(0, 0, 10, 10)])
+    b.curve("Target_Straight", [b.rect(20, 0, 30, 10)])
+    b.curve("SensorArea", [b.rect(-5, 0, -1, 4)])
+    junction = bpy.data.objects["Target_Junction"]
+    junction[names.COVERAGE_K_PROP] = 2
+    junction[names.DORI_PROP] = "Recognize"  # either spelling, any case
+    junction[names.REQUIRE_PROP] = "lidar"
+    areas = {a.name: a for a in extract_scene().targets}
+    assert (areas["Target_Junction"].coverage_k, areas["Target_Junction"].dori) == (2, "recognise")
+    assert areas["Target_Junction"].require == "lidar"
+    straight = areas["Target_Straight"]
+    assert (straight.coverage_k, straight.dori, straight.require) == (None, None, None)
+    for prop, value, message in (
+        (names.COVERAGE_K_PROP, 0, "coverage_k must be a whole number from 1 to 10"),
+        (names.COVERAGE_K_PROP, 1.5, "coverage_k must be a whole number from 1 to 10"),
+        (names.DORI_PROP, "see", "dori must be a DORI level: one of detect, observe, "),
+        (names.REQUIRE_PROP, "sonar", "require must be a sensor kind: one of camera, lidar"),
+    ):
+        junction[prop] = value
+        with pytest.raises(SceneContractError) as err:
+            extract_scene()
+        assert str(err.value).startswith(f"Target_Junction: custom property {message}")
+        del junction[prop]

@@ -34,13 +34,20 @@ class Area:
     """A named region in the XY plane (local metres).
 
     ``z`` is the mean height of the curve's points (used only where the scene has
-    no surface at all); ``height_m`` is a sensor area's mast height, if given.
+    no surface at all); ``height_m`` is a sensor area's mast height, if given. A target
+    area's requirements, None where it names none (the run's settings apply):
+    ``coverage_k`` sensors must cover each of its points; ``dori`` the level of
+    ``sensors.DORI_PX_PER_M`` a camera must reach there; ``require`` the sensor kind
+    (``sensors.KINDS``) that must cover it.
     """
 
     name: str
     geometry: BaseGeometry  # Polygon or MultiPolygon, valid, non-empty
     z: float = 0.0
     height_m: float | None = None
+    coverage_k: int | None = None
+    dori: str | None = None
+    require: str | None = None
 
     @property
     def area_m2(self) -> float:
@@ -70,6 +77,9 @@ class SceneModel:
     ground_faces: NDArray[np.bool_] | None = None
     crs: str | None = None
     crs_offset: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+    # Where masts may not stand (``names.NO_MAST_RE`` curves): already cut out of
+    # ``sensor_areas``, kept to be shown and reported.
+    no_mast: tuple[Area, ...] = ()
 
     def cropped(self, reach_m: float) -> SceneModel:
         """The scene without occluders that no sight line can meet: faces farther than
@@ -159,7 +169,7 @@ def area_from_rings(name: str, rings: list[NDArray[np.float64]]) -> BaseGeometry
         raise SceneContractError(f"{name}: curve has no splines")
     geom = reduce(lambda a, b: a.symmetric_difference(b), polys)
     geom = shapely.make_valid(geom)
-    geom = _polygonal_part(geom)
+    geom = polygonal_part(geom)
     if geom.is_empty or geom.area <= 1e-9:
         raise SceneContractError(f"{name}: the area inside the curves is empty")
     return geom
@@ -195,7 +205,7 @@ def _tilt_deg(pts: NDArray[np.float64]) -> float | None:
     return math.degrees(math.acos(min(1.0, abs(n[2]) / norm)))
 
 
-def _polygonal_part(geom: BaseGeometry) -> BaseGeometry:
+def polygonal_part(geom: BaseGeometry) -> BaseGeometry:
     """Only the polygons of a geometry (make_valid may add stray lines or points)."""
     if isinstance(geom, (Polygon, MultiPolygon)):
         return geom

@@ -45,6 +45,8 @@ from ..checks import brief, check_keys, number, whole_number
 from ..errors import InputError
 
 KINDS = ("camera", "lidar", "radar")
+# The pixel densities of EN 62676-4's DORI levels, px per metre at the target.
+DORI_PX_PER_M = {"detect": 25.0, "observe": 62.0, "recognise": 125.0, "identify": 250.0}
 PATTERNS = ("angular", "pinhole")
 
 # |n_z| below this counts as a vertical face; keeps the XY projection finite.
