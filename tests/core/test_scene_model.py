@@ -56,3 +56,28 @@ def test_local_origin_only_for_large_coordinates():
     big = small + [500_000.0, 6_400_000.0, 0.0]
     origin = choose_origin(big)
     assert origin[2] == 0 and np.abs(big[:, :2] - origin[:2]).max() < 1000
+
+
+def test_the_grid_carries_each_target_areas_requirements():
+    from dataclasses import replace
+
+    import shapely
+
+    from autoscoop_blender.core.geom.grid import GroundGrid
+    from autoscoop_blender.core.geom.raycast import BoxCaster
+    from autoscoop_blender.core.model.scene import Area
+    from tests.core.flat import flat_scene
+
+    junction = Area("Target_Junction", shapely.box(0, 0, 4, 4), coverage_k=2, dori="recognise")
+    lidar_lane = Area("Target_Lane", shapely.box(10, 0, 12, 4), require="lidar")
+    scene = replace(flat_scene(), targets=(junction, lidar_lane))
+    grid = GroundGrid(scene, BoxCaster(ground_z=0.0), 1.0, reach_m=10.0)
+    assert list(grid.region_k) == [2, 0]
+    assert list(grid.region_px_per_m) == [125.0, 0.0]
+    assert list(grid.region_kind) == [-1, 1]  # KINDS = camera, lidar, radar
+    # Per point through target_region: 16 cells of the junction, 8 of the lane.
+    k = grid.region_k[grid.target_region]
+    assert list(k) == [2] * 16 + [0] * 8
+    again = GroundGrid.from_arrays(grid.arrays(), BoxCaster(ground_z=0.0))
+    # Cells are ordered by x first: the junction's, then the lane's; so in a worker.
+    assert list(again.region_kind[again.target_region]) == [-1] * 16 + [1] * 8

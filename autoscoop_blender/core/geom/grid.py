@@ -28,6 +28,7 @@ from scipy import ndimage
 from .. import budget
 from ..errors import InputError, SceneContractError
 from ..model.scene import SceneModel
+from ..model.sensors import DORI_PX_PER_M, KINDS
 from .raycast import FloorCaster, RayCaster
 
 I64 = NDArray[np.int64]
@@ -41,7 +42,11 @@ class GridArrays:
     x0, y0: the lattice corner (local m); spacing: cell side (m); nx, ny: cells.
     z_top, drop_len: where drop rays start (local m) and how far they reach;
     floor_z: the implicit floor under the scene. target_cells (N,) flat indices,
-    target_region (N,) each one's target area; dist (nx * ny,) float32 distance to
+    target_region (N,) each one's target area (index into ``scene.targets``), and per
+    target area its requirements (``model.scene.Area``): region_k (R,) sensors that
+    must see each point (0: the run's setting), region_px_per_m (R,) the pixel density
+    a camera must reach (0: none), region_kind (R,) the index in ``sensors.KINDS`` of
+    the kind that must see it (-1: any); dist (nx * ny,) float32 distance to
     the nearest target cell centre (m); z (nx * ny,) and normal (nx * ny, 3) float32:
     the surface under each cell as far as dropped (nan: not yet).
     """
@@ -57,6 +62,9 @@ class GridArrays:
     floor_z: float
     target_cells: I64
     target_region: NDArray[np.int32]
+    region_k: NDArray[np.int32]
+    region_px_per_m: NDArray[np.float64]
+    region_kind: NDArray[np.int8]
     dist: NDArray[np.float32]
     z: NDArray[np.float32]
     normal: NDArray[np.float32]
@@ -116,6 +124,14 @@ class GroundGrid:
             floor_z=scene.floor_z(),
             target_cells=cells,
             target_region=region,
+            region_k=np.array([a.coverage_k or 0 for a in scene.targets], dtype=np.int32),
+            region_px_per_m=np.array(
+                [DORI_PX_PER_M[a.dori] if a.dori else 0.0 for a in scene.targets]
+            ),
+            region_kind=np.array(
+                [KINDS.index(a.require) if a.require else -1 for a in scene.targets],
+                dtype=np.int8,
+            ),
             dist=dist.astype(np.float32).ravel(),
             z=np.full(n, np.nan, dtype=np.float32),
             normal=np.full((n, 3), np.nan, dtype=np.float32),
@@ -143,6 +159,9 @@ class GroundGrid:
             floor_z=self.caster.floor_z,
             target_cells=self.target_cells,
             target_region=self.target_region,
+            region_k=self.region_k,
+            region_px_per_m=self.region_px_per_m,
+            region_kind=self.region_kind,
             dist=self._dist,
             z=self._z,
             normal=self._normal,
@@ -160,6 +179,8 @@ class GroundGrid:
         self._z_top, self._drop_len = a.z_top, a.drop_len
         self._z, self._normal, self._dist = a.z, a.normal, a.dist
         self.target_cells, self.target_region = a.target_cells, a.target_region
+        self.region_k, self.region_px_per_m = a.region_k, a.region_px_per_m
+        self.region_kind = a.region_kind
         self._target_ordinal = np.full(a.nx * a.ny, -1, dtype=np.int32)
         self._target_ordinal[a.target_cells] = np.arange(len(a.target_cells))
         self._target_xy: F64 | None = None
