@@ -7,6 +7,7 @@ from dataclasses import replace
 import bpy
 import numpy as np
 import pytest
+import shapely
 
 from autoscoop_blender.core.coverage.base import place
 from autoscoop_blender.core.coverage.targeted import TargetedEvaluator
@@ -119,19 +120,49 @@ def test_georeferenced_scene_covers_exactly_like_the_local_one():
     assert np.array_equal(covered[0], covered[1]) and len(covered[0]) > 1000
 
 
+def _segment_distance(p, a, b):
+    """Distances from points p (..., 2) to segments a-b (..., 2), broadcast."""
+    ab = b - a
+    t = np.clip(((p - a) * ab).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-300), 0.0, 1.0)
+    return np.linalg.norm(p - (a + t[..., None] * ab), axis=-1)
+
+
+def _plan_distances(tri, rings):
+    """(T,) distances between triangles (T, 3, 2) and polygons' closed rings [(K, 2)]
+    that do not overlap them: the least vertex-to-edge distance either way."""
+    best = np.full(len(tri), np.inf)
+    edges_a, edges_b = tri, np.roll(tri, -1, axis=1)  # (T, 3, 2) each
+    for ring in rings:
+        for start, end in zip(ring[:-1], ring[1:], strict=True):
+            best = np.minimum(best, _segment_distance(tri, start, end).min(axis=1))
+        for v in ring[:-1]:
+            best = np.minimum(best, _segment_distance(v, edges_a, edges_b).min(axis=1))
+    return best
+
+
 def test_cropping_leaves_out_only_what_no_sensor_can_reach(open_sample):
     open_sample("two_routes")
     scene = extract_scene()
     cropped = scene.cropped(PAPER_CAMERA.range_m)
     assert len(cropped.faces) < len(scene.faces)
-    # Every dropped face is farther than the range from every sensor area.
+    # Exactly the faces whose plan comes within the range of a sensor area (or lies
+    # over a target) are kept. The plan distance between a triangle and a polygon,
+    # worked out here from vertices and segments (disjoint polygons are nearest at a
+    # vertex of one and an edge of the other), not by the cropping's own GEOS call.
+    r = PAPER_CAMERA.range_m
     kept = {tuple(f) for f in cropped.faces.tolist()}
-    dropped = np.array([f for f in scene.faces.tolist() if tuple(f) not in kept])
-    centres = scene.vertices[dropped].mean(axis=1)
-    import shapely
-
-    d = shapely.distance(scene.sensor_union, shapely.points(centres[:, :2]))
-    assert d.min() > PAPER_CAMERA.range_m - 10.0  # minus half a terrain cell's diagonal
+    tri = scene.vertices[scene.faces][:, :, :2]
+    areas = [np.asarray(a.geometry.exterior.coords)[:, :2] for a in scene.sensor_areas]
+    inside = shapely.intersects(
+        shapely.union_all([a.geometry for a in (*scene.sensor_areas, *scene.targets)]),
+        shapely.polygons(np.concatenate([tri, tri[:, :1]], axis=1)),
+    )
+    dist = _plan_distances(tri, areas)
+    is_kept = np.array([tuple(f) in kept for f in scene.faces.tolist()])
+    assert np.array_equal(is_kept, (dist <= r) | inside)
+    # Faces just beyond and just within the range exist, so the test tells them apart.
+    dist = dist[~inside]
+    assert ((dist > r) & (dist < r + 1.0)).any() and ((dist <= r) & (dist > r - 1.0)).any()
     # And coverage does not change.
     caster_full, caster_crop = BVHCaster.from_scene(scene), BVHCaster.from_scene(cropped)
     grid_full = GroundGrid(scene, caster_full, 1.0, reach_m=80.0)

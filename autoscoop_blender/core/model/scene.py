@@ -82,16 +82,33 @@ class SceneModel:
     no_mast: tuple[Area, ...] = ()
 
     def cropped(self, reach_m: float) -> SceneModel:
-        """The scene without occluders that no sight line can meet: faces farther than
-        ``reach_m`` (the longest sensor range) from every sensor area, and not over a
-        target (drops need the ground there)."""
+        """The scene without occluders that no sight line can meet: faces whose nearest
+        point (in plan) lies farther than ``reach_m`` (the longest sensor range) from
+        every sensor area, and not over a target (drops need the ground there).
+
+        A sight line is at least as long as its plan, so a face kept by its plan
+        distance is never one a sensor could reach. The distance is exact (GEOS,
+        triangle to polygon), not to a buffered outline, whose chords cut up to
+        r (1 - cos(pi / 32)) = 0.4 m off an 80 m reach; buffers 1 m wider and narrower
+        only sort out, by bounding box, the faces that are surely in or out (all but
+        2,310 of full_ground's 107,024: 0.24 s instead of 1.4 s).
+        """
         if len(self.faces) == 0:
             return self
-        region = shapely.union_all([self.sensor_union.buffer(reach_m), self.target_union])
-        tri = self.vertices[self.faces]
+        tri = self.vertices[self.faces][:, :, :2]
         lo, hi = tri.min(axis=1), tri.max(axis=1)
         boxes = shapely.box(lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1])
-        keep = shapely.intersects(region, boxes)
+        outer, inner = (self.sensor_union.buffer(reach_m + d) for d in (1.0, -1.0))
+        shapely.prepare(outer)
+        shapely.prepare(inner)
+        maybe = shapely.intersects(outer, boxes)
+        keep = maybe & shapely.contains(inner, boxes)
+        edge = np.flatnonzero(maybe & ~keep)
+        keep[edge] = shapely.dwithin(_plans(tri[edge]), self.sensor_union, reach_m)
+        target = self.target_union
+        shapely.prepare(target)
+        over = np.flatnonzero(~keep & shapely.intersects(target, boxes))
+        keep[over] = shapely.intersects(target, _plans(tri[over]))
         if keep.all():
             return self
         ground = None if self.ground_faces is None else self.ground_faces[keep]
@@ -203,6 +220,12 @@ def _tilt_deg(pts: NDArray[np.float64]) -> float | None:
     if norm <= 1e-9:
         return None
     return math.degrees(math.acos(min(1.0, abs(n[2]) / norm)))
+
+
+def _plans(tri: NDArray[np.float64]) -> NDArray[np.object_]:
+    """Triangles (T, 3, 2) as polygons in plan; a wall's is a flat sliver, which is
+    fine for distances and intersections (they look at its edges and inside)."""
+    return shapely.polygons(np.concatenate([tri, tri[:, :1]], axis=1))
 
 
 def polygonal_part(geom: BaseGeometry) -> BaseGeometry:
