@@ -96,8 +96,13 @@ def test_grazing_sight_lines_are_not_blocked_by_their_own_ground():
     model = replace(ROADSIDE_LIDAR, range_m=200.0, min_density_per_m2=0.0)
     pose = place(grid, -1.0, 0.0, 0.3, 0.0, 0.0)  # 30 cm over the ground, level
     cov = TargetedEvaluator(grid, caster).evaluate(model, pose, visibility=True)
-    far = grid.target_xy[cov.visible][:, 0].max()
-    assert far > 150.0  # incidence below 0.12 deg out there, still visible
+    # Every target point within the 200 m range is visible, out to the last cell
+    # centre in reach, x = 198.5 (199.5 m from the sensor; 200.5 is beyond), where the
+    # sight line meets the ground at atan(0.3 / 199.5) = 0.09 deg.
+    xy = grid.target_xy
+    in_range = np.sqrt((xy[:, 0] + 1.0) ** 2 + xy[:, 1] ** 2 + 0.3**2) <= 200.0
+    assert np.array_equal(np.sort(cov.visible), np.flatnonzero(in_range))
+    assert grid.target_xy[cov.visible][:, 0].max() == 198.5
     assert len(cov.visible) == len(cov.covered)
 
 
@@ -196,7 +201,12 @@ def test_a_target_that_needs_hundreds_of_sensors():
     settings = replace(FAST, rho=0.97, grid_m=1.0, es=ESParams(mu=6, lam=3, max_epochs=3))
     res = Run(_scene(road, [verge]), box_caster(), model, settings).result()
     assert res.metrics["coverage_fraction"] >= 0.97
-    assert res.metrics["sensors"] >= 100
+    # Below: no sensor sees more than a disk of its horizontal reach, sqrt(15^2 - 3^2)
+    # = 14.7 m, so at most 29.4 m of the 4 m road: 97 % of 3000 m needs >= 100 of them.
+    # Above: this seed's run fixed 448 (2026-11-23; the short ES of FAST); a change that
+    # needs a tenth more is a regression to look at, not noise (same seed, same answer).
+    assert math.ceil(0.97 * 3000 / (2 * math.sqrt(15**2 - 3**2))) == 100
+    assert 100 <= res.metrics["sensors"] <= 1.1 * 448
     assert "max_sensors" not in res.stop_reason
 
 

@@ -30,9 +30,10 @@ def test_largest_targeted_footprint_over_the_pitch_range_is_the_papers(flat):
     pitches = np.arange(PAPER_CAMERA.pitch_min_deg, PAPER_CAMERA.pitch_max_deg + 0.01, 0.5)
     areas = [_footprint(ev, grid, p).footprint_m2 for p in pitches]
     assert max(areas) == pytest.approx(PAPER_REFERENCE_M2, rel=0.02)
-    # The plateau the paper's sensors (pitch 31..42) stand on: within 5 % of the max.
+    # The plateau the paper's sensors (pitch 31..42) stand on: within the README's
+    # 4.2 % of the max (measured 1180.0 m^2 at 31 deg against 1231.5 at the top).
     plateau = [a for p, a in zip(pitches, areas) if p <= 42]
-    assert min(plateau) >= 0.95 * max(areas)
+    assert min(plateau) >= (1 - 0.042) * max(areas)
 
 
 def test_largest_pointcloud_footprint_is_the_papers(flat):
