@@ -63,4 +63,5 @@ def test_real_file_reads_and_builds(name):
     assert result.ground.vertices[0, 2] == pytest.approx(zmin - 0.05)
     for s in result.surfaces:
         p = s.vertices[s.faces][:, :, :2]
-        assert np.all(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]) > 0)
+        u, v = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]  # z of u x v (numpy 2: no 2-D cross)
+        assert np.all(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0] > 0)
