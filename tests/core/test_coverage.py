@@ -10,8 +10,9 @@ import shapely
 from autoscoop_blender.core.coverage.base import place, summarize
 from autoscoop_blender.core.coverage.pointcloud import PointcloudEvaluator
 from autoscoop_blender.core.coverage.targeted import TargetedEvaluator
+from autoscoop_blender.core.geom.grid import GroundGrid
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA
-from tests.core.flat import flat_grid
+from tests.core.flat import flat_grid, flat_scene
 
 BOX = ((10.0, -2.0, 0.0), (12.0, 6.0, 3.0))
 
@@ -39,6 +40,52 @@ def test_targeted_hides_the_analytic_shadow_of_a_box():
         areas.append(len(cov.covered) * grid.cell_area)
     expected = analytic_shadow((-6.0, 0.0, 7.0), *BOX)
     assert areas[0] - areas[1] == pytest.approx(expected, rel=0.01)
+
+
+def test_targets_above_the_road_see_past_a_box():
+    """target_height_m = 1 (a vehicle): the points sit on the plane z = 1, where only
+    the box's part above 1 m casts a shadow: the hull of its section at 1 m and its
+    top corners projected from the sensor onto z = 1, minus the box's base (its points
+    stand on its top, in view)."""
+    t, sensor = 1.0, np.array([-6.0, 0.0, 7.0])
+    (x0, y0, _), (x1, y1, top) = BOX
+    section = [(x, y) for x in (x0, x1) for y in (y0, y1)]
+    roof = np.array([(x, y, top) for x, y in section])
+    projected = sensor[:2] + (roof[:, :2] - sensor[:2]) * ((sensor[2] - t) / (sensor[2] - top))
+    hull = shapely.MultiPoint(np.vstack([section, projected])).convex_hull
+    expected = hull.area - shapely.box(x0, y0, x1, y1).area
+    assert expected < analytic_shadow(sensor, *BOX) - 20  # a real difference to find
+    model = replace(PAPER_CAMERA, min_density_per_m2=0.0)
+    areas = []
+    for boxes in ((), (BOX,)):
+        _, caster = flat_grid(spacing=0.25, boxes=boxes, target=(0, -30, 50, 30))
+        scene = flat_scene(boxes=boxes, target=(0, -30, 50, 30))
+        lifted = GroundGrid(scene, caster, 0.25, target_height_m=t, reach_m=80.0)
+        cov = TargetedEvaluator(lifted, caster).evaluate(
+            model, place(lifted, *sensor[:2], 7.0, 40.0, 0.0)
+        )
+        areas.append(len(cov.covered) * lifted.cell_area)
+    assert areas[0] - areas[1] == pytest.approx(expected, rel=0.01)
+
+
+def test_a_roof_top_lidar_sees_all_around():
+    """A 360 deg lidar on a 10 m mast, level: with nothing in the way it covers the
+    ring between where its lowest ray meets the ground and its range, every bearing."""
+    from autoscoop_blender.core.model.sensors import ROADSIDE_LIDAR
+
+    model = replace(ROADSIDE_LIDAR, h_fov_deg=360.0, range_m=40.0, min_density_per_m2=0.0)
+    grid, caster = flat_grid(spacing=0.5, target=(-50, -50, 50, 50), sensor=(-1, -1, 1, 1))
+    cov = TargetedEvaluator(grid, caster).evaluate(model, place(grid, 0.0, 0.0, 10.0, 0.0, 0.0))
+    xy = grid.target_xy[cov.covered]
+    r = np.hypot(xy[:, 0], xy[:, 1])
+    inner = 10.0 / math.tan(math.radians(model.v_fov_deg / 2))  # lowest ray's ground hit
+    outer = math.sqrt(40.0**2 - 10.0**2)  # the 40 m range, 10 m up
+    ring = math.pi * (outer**2 - inner**2)
+    assert len(cov.covered) * grid.cell_area == pytest.approx(ring, rel=0.02)
+    assert r.min() >= inner - 0.5 and r.max() <= outer + 0.5
+    # Every bearing: the covered points' angles leave no gap wider than a few cells.
+    bearings = np.sort(np.degrees(np.arctan2(xy[:, 1], xy[:, 0])))
+    assert np.diff(np.concatenate([bearings, bearings[:1] + 360])).max() < 2.0
 
 
 @pytest.fixture(scope="module")
