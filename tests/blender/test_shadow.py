@@ -66,3 +66,15 @@ def test_pointcloud_hides_the_analytic_shadow(open_sample):
     )
     with_wall, without = _seen_m2(lambda g, c: PointcloudEvaluator(g, c), model, 16.0, 7.0, 0.5)
     assert without - with_wall == pytest.approx(analytic_hidden_m2(), rel=0.01)
+
+
+def test_pointcloud_with_the_papers_own_pattern_misses_the_shadow_by_2_percent(open_sample):
+    """Table I's 192 x 160 rays, aimed as the targeted test above: the alpha shape bridges
+    part of the shadow's edge, so the README quotes 2 % here (measured +1.8 % on the
+    0.25 m grid, +2.5 % on 0.5 m), against 1 % for the 400,000-ray sensor."""
+    open_sample("flat_wall")
+    model = replace(PAPER_CAMERA, min_density_per_m2=0.0)
+    with_wall, without = _seen_m2(lambda g, c: PointcloudEvaluator(g, c), model, 40.0, 0.0, 0.25)
+    hidden = without - with_wall
+    assert hidden == pytest.approx(analytic_hidden_m2(), rel=0.02)
+    assert hidden > analytic_hidden_m2()  # what it gets wrong: shadow edges bridged
