@@ -249,3 +249,35 @@ def test_an_output_folder_nobody_can_write_is_one_line(tmp_path, where):
     code, _, stderr = run_headless("optimize", FLAT, "--out-dir", where)
     assert code == 2 and stderr.strip().splitlines()[-1].startswith(f"error: {where}"), stderr
     assert "Traceback" not in stderr
+
+
+@pytest.mark.parametrize(
+    ("change", "what"),
+    [
+        ("scene", "a different scene"),
+        ("model", "a different model"),
+        ("settings", "different settings"),
+    ],
+)
+def test_a_checkpoint_of_another_scene_model_or_settings_is_refused(
+    finished, tmp_path, change, what
+):
+    """--resume with anything the answer depends on changed: one line naming it, and
+    the checkpoint left byte for byte."""
+    cfg, _, data = finished
+    mine = copy_run(finished, tmp_path)
+    scene = SAMPLES / "two_routes.blend" if change == "scene" else FLAT
+    if change == "model":
+        cfg = tmp_path / "lidar.toml"
+        cfg.write_text('model = "roadside_lidar"\n' + SMALL)
+    elif change == "settings":
+        cfg = tmp_path / "rho.toml"
+        cfg.write_text(SMALL.replace("rho = 0.6", "rho = 0.7"))
+    code, _, stderr = run_headless(
+        "optimize", scene, "--config", cfg, "--out-dir", mine, "--resume"
+    )
+    assert code == 2, stderr
+    assert stderr.strip().splitlines()[-1] == (
+        f"error: {mine / 'checkpoint.jsonl'}: made with {what}; run without --resume to start again"
+    )
+    assert (mine / "checkpoint.jsonl").read_bytes() == data
