@@ -9,6 +9,7 @@ import pytest
 
 import autoscoop_blender
 from autoscoop_blender import names, ui
+from autoscoop_blender import ops as ui_ops
 from autoscoop_blender.scene import extract, pipeline
 from tests.blender import builders as b
 from tests.blender.conftest import SAMPLES
@@ -375,3 +376,56 @@ def test_panel_properties_come_from_the_settings_schema():
     settings = pipeline.settings_from(props)
     assert settings.es == ESParams(mu=7) and settings.optimizer == "greedy" and settings.seed == 3
     assert pipeline.coverage_settings_from(props).grid_m == props.grid_m
+
+
+class _Event:
+    def __init__(self, kind):
+        self.type = kind
+
+
+def _modal_op(job):
+    """The optimize operator's modal handler, driven by hand: background Blender has no
+    event loop, so the test plays the timer and Esc events a window would send."""
+    cls = ui_ops.AUTOSCOOP_OT_optimize
+    op = type("ModalOp", (), {})()
+    op._job, op._timer, op._budget_s = job, None, cls._budget_s
+    op.reports = []
+    op.report = lambda level, text: op.reports.append((set(level), text))
+    for name in ("modal", "_cleanup", "_finish"):
+        setattr(op, name, getattr(cls, name).__get__(op))
+    return op
+
+
+def test_esc_keeps_the_best_plan_so_far_and_one_undo_removes_it():
+    props = _flat_wall(optimizer="lp")
+    bpy.ops.ed.undo_push(message="before")
+    before, counts = _snapshot()
+    op = _modal_op(pipeline.OptimizeJob(bpy.context))
+    state = op.modal(bpy.context, _Event("TIMER"))
+    while state == {"RUNNING_MODAL"} and op._job.progress.best is None:
+        state = op.modal(bpy.context, _Event("TIMER"))  # until lp holds a plan
+    assert state == {"RUNNING_MODAL"}
+    best = op._job.progress.best
+    assert op.modal(bpy.context, _Event("ESC")) == {"RUNNING_MODAL"}
+    assert "keeping the best plan so far" in op.reports[-1][1]
+    while state == {"RUNNING_MODAL"}:
+        state = op.modal(bpy.context, _Event("TIMER"))
+    assert state == {"FINISHED"}
+    result = json.loads(props.result_json)
+    assert result["metrics"]["cost"] <= best  # the plan kept is at least that good
+    assert len(bpy.data.collections[names.RESULTS_COLLECTION].all_objects) > 0
+    bpy.ops.ed.undo_push(message="Optimize")
+    bpy.ops.ed.undo()  # one step: the scene as it was
+    assert _snapshot() == (before, counts)
+    assert bpy.context.scene.autoscoop.result_json == ""
+
+
+def test_esc_twice_cancels_and_changes_nothing():
+    props = _flat_wall(optimizer="lp")
+    before, counts = _snapshot()
+    op = _modal_op(pipeline.OptimizeJob(bpy.context))
+    op.modal(bpy.context, _Event("TIMER"))
+    assert op.modal(bpy.context, _Event("ESC")) == {"RUNNING_MODAL"}
+    assert op.modal(bpy.context, _Event("ESC")) == {"CANCELLED"}
+    assert "nothing was changed" in op.reports[-1][1]
+    assert _snapshot() == (before, counts) and props.result_json == ""
