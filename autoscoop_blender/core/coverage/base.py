@@ -2,8 +2,10 @@
 union over a set of sensors.
 
 A coverage method answers, for a sensor pose, which target points the sensor covers
-(line of sight, inside range and FoV, point density at least the model's threshold),
-with what density chi, and what its footprint on the ground is. The methods are
+(line of sight, inside range and FoV, point density at least the model's threshold,
+and for a camera with a resolution the pixel density its model and the point's target
+area ask for: ``pixel_need``, ``sensors`` module docstring), with what density chi,
+and what its footprint on the ground is. The methods are
 ``targeted`` (``targeted.py``, one sight ray per target point that can count; exact at
 the grid's resolution), its cached form (``cached.py``) and the paper's ``pointcloud``
 (``pointcloud.py``, the whole ray pattern and an alpha shape).
@@ -25,7 +27,7 @@ from shapely.geometry.base import BaseGeometry
 from ..geom.alpha import union_triangles
 from ..geom.grid import GroundGrid
 from ..geom.raycast import RayCaster
-from ..model.sensors import SensorModel, SensorPose, surface_factor
+from ..model.sensors import SensorModel, SensorPose, facing_factor, surface_factor
 
 I64 = NDArray[np.int64]
 F64 = NDArray[np.float64]
@@ -80,22 +82,27 @@ class SightLines:
     d, dist: (K, 3) unit directions and (K,) distances to the target points (the
     cell's surface point raised by the target height); gd: (K, 3) unit directions
     to the surface point itself, where the pattern's density is measured; surface:
-    (K,) its orientation-free density factor (``sensors.surface_factor``).
+    (K,) its orientation-free density factor (``sensors.surface_factor``); facing:
+    (K,) the pixel density's (``sensors.facing_factor``), or None when not asked for
+    (a model without a resolution never needs it).
     """
 
     d: F64
     dist: F64
     gd: F64
     surface: F64
+    facing: F64 | None = None
 
     def subset(self, rows: NDArray[np.int_]) -> SightLines:
         d = self.d[rows]
         gd = d if self.gd is self.d else self.gd[rows]  # no target height: one array
-        return SightLines(d, self.dist[rows], gd, self.surface[rows])
+        facing = None if self.facing is None else self.facing[rows]
+        return SightLines(d, self.dist[rows], gd, self.surface[rows], facing)
 
 
-def sight_lines(grid: GroundGrid, s: F64, cells: I64) -> SightLines:
-    """Sight lines from position ``s`` (3,) to ``cells`` (dropping them if needed)."""
+def sight_lines(grid: GroundGrid, s: F64, cells: I64, pixels: bool = False) -> SightLines:
+    """Sight lines from position ``s`` (3,) to ``cells`` (dropping them if needed);
+    ``pixels``: with the pixel density's factor too."""
     z, normals = grid.surface(cells)
     ground = np.column_stack([grid.xy(cells), z])
     gvec = ground - s
@@ -103,13 +110,14 @@ def sight_lines(grid: GroundGrid, s: F64, cells: I64) -> SightLines:
     with np.errstate(invalid="ignore", divide="ignore"):
         gd = gvec / gdist[:, None]
     surface = surface_factor(gd, gdist, normals)
+    facing = facing_factor(gd, gdist, normals) if pixels else None
     if grid.target_height_m == 0.0:
-        return SightLines(gd, gdist, gd, surface)
+        return SightLines(gd, gdist, gd, surface, facing)
     vec = gvec + (0.0, 0.0, grid.target_height_m)
     dist = np.linalg.norm(vec, axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         d = vec / dist[:, None]
-    return SightLines(d, dist, gd, surface)
+    return SightLines(d, dist, gd, surface, facing)
 
 
 def clear_sight(
@@ -153,17 +161,50 @@ def to_sensor(d: F64, rot: F64) -> F64:
     return out
 
 
-def view(model: SensorModel, rot: F64, lines: SightLines) -> tuple[NDArray[np.bool_], F64]:
-    """(K,) whether each target point lies inside range and FoV, and (K,) the
-    pattern's density on the surface under it (points/m^2, sensor units); for
-    several frames ``rot`` (O, 3, 3), both are (O, K)."""
+def pixel_need(grid: GroundGrid, model: SensorModel, ordinal: I64) -> F64 | None:
+    """(K,) the pixel density (px/m) each row (target ordinal, -1 outside the targets)
+    must reach for ``model`` to cover it: the larger of the model's ``min_px_per_m``
+    and the target area's ``dori`` (``grid.region_px_per_m``); ``inf`` where the model
+    has no resolution and the area asks for one (it cannot cover the point). None when
+    no row asks for any pixel density (every model on a scene without ``dori``)."""
+    region_px = grid.region_px_per_m
+    asks = bool(region_px.any())
+    if model.resolution_px is None and not asks:
+        return None
+    need = np.full(len(ordinal), model.min_px_per_m)
+    if asks:
+        t = ordinal >= 0
+        need[t] = np.maximum(need[t], region_px[grid.target_region[ordinal[t]]])
+    if model.resolution_px is None:
+        need[need > 0] = np.inf
+    if not need.any():
+        return None
+    return need
+
+
+def view(
+    model: SensorModel, rot: F64, lines: SightLines, need: F64 | None = None
+) -> tuple[NDArray[np.bool_], F64, NDArray[np.bool_]]:
+    """(K,) whether each target point lies inside range and FoV; (K,) the pattern's
+    density on the surface under it (points/m^2, sensor units); (K,) whether the
+    sensor detects it there (in view, the density at least the model's threshold,
+    and the pixel density at least ``need``, px/m, from ``pixel_need``; a model
+    without a resolution only where ``need`` is 0). For several frames ``rot``
+    (O, 3, 3), all three are (O, K). Line of sight is not tested here."""
     with np.errstate(invalid="ignore"):
         in_range = (lines.dist > 1e-9) & (lines.dist <= model.range_m)
         local = to_sensor(lines.d, rot)
         in_view = in_range & model.in_fov(local)
         ground = local if lines.gd is lines.d else to_sensor(lines.gd, rot)
-        density = model.rays_per_sr(ground) * lines.surface
-    return in_view, np.where(in_view, density, 0.0)
+        density = np.where(in_view, model.rays_per_sr(ground) * lines.surface, 0.0)
+        detects = in_view & (density >= model.min_density_per_m2)
+        if need is not None:
+            if model.resolution_px is None:
+                detects &= need == 0
+            else:
+                assert lines.facing is not None, "sight_lines(..., pixels=True) for pixels"
+                detects &= model.px_per_m(ground, lines.facing) >= need
+    return in_view, density, detects
 
 
 def cells_in_reach(

@@ -31,7 +31,15 @@ from numpy.typing import NDArray
 from ..geom.grid import GroundGrid
 from ..geom.raycast import RayCaster
 from ..model.sensors import SensorModel, SensorPose, frame
-from .base import SensorCoverage, SightLines, cells_in_reach, clear_sight, sight_lines, view
+from .base import (
+    SensorCoverage,
+    SightLines,
+    cells_in_reach,
+    clear_sight,
+    pixel_need,
+    sight_lines,
+    view,
+)
 from .targeted import TargetedEvaluator
 
 I64 = NDArray[np.int64]
@@ -52,6 +60,8 @@ class _Reach:
         arrays = [self.cells, self.ordinal, lines.d, lines.dist, lines.surface]
         if lines.gd is not lines.d:
             arrays.append(lines.gd)
+        if lines.facing is not None:
+            arrays.append(lines.facing)
         return sum(a.nbytes for a in arrays)
 
 
@@ -101,8 +111,9 @@ class CachedTargetedEvaluator:
             return self._direct.evaluate(model, pose, outside_band_m, visibility)
 
         reach, answers = self._position(model, pose, outside_band_m)
-        in_view, density = view(model, frame(pose.pitch_deg, pose.yaw_deg), reach.lines)
-        need = in_view & (density >= model.min_density_per_m2)
+        px_need = pixel_need(self.grid, model, reach.ordinal)
+        rot = frame(pose.pitch_deg, pose.yaw_deg)
+        _, density, need = view(model, rot, reach.lines, px_need)
         rays = self._ask(pose, reach, answers, need)
         covered = need & (answers == _CLEAR)
         is_target = reach.ordinal >= 0
@@ -128,8 +139,8 @@ class CachedTargetedEvaluator:
         per-point answers as ``evaluate`` for each orientation; rays only to points
         some orientation needs and nothing has asked about yet."""
         reach, answers = self._position(model, pose, None)
-        in_view, density = view(model, rots, reach.lines)
-        need = in_view & (density >= model.min_density_per_m2)
+        px_need = pixel_need(self.grid, model, reach.ordinal)
+        _, _, need = view(model, rots, reach.lines, px_need)
         self.extra_rays += self._ask(pose, reach, answers, need.any(axis=0))
         return need & (answers == _CLEAR), reach.ordinal
 
@@ -186,7 +197,7 @@ class CachedTargetedEvaluator:
         self, model: SensorModel, s: NDArray[np.float64], outside_band_m: float | None
     ) -> _Reach:
         cells, ordinal = cells_in_reach(self.grid, s, model.range_m, outside_band_m)
-        lines = sight_lines(self.grid, s, cells)
+        lines = sight_lines(self.grid, s, cells, pixels=model.resolution_px is not None)
         # Could any allowed orientation cover the point? In range, dense enough at
         # the pattern's densest direction, within the reachable depression band.
         reach = math.radians(model.max_off_axis_deg())
@@ -201,5 +212,14 @@ class CachedTargetedEvaluator:
             & band
             & (best_density >= model.min_density_per_m2)
         )
+        # And sharp enough at the FoV's corner, where a pixel spans the least. (With a
+        # target height the density is measured along another line than the FoV's, so
+        # only the points the model can never cover are left out there.)
+        px_need = pixel_need(self.grid, model, ordinal)
+        if px_need is not None:
+            maybe &= np.isfinite(px_need)
+            if model.resolution_px is not None and lines.facing is not None and lines.gd is lines.d:
+                best_px = np.sqrt(model.max_px_per_sr() * lines.facing) * (1 + 1e-6)
+                maybe &= best_px >= px_need
         rows = np.flatnonzero(maybe)
         return _Reach(cells[rows], ordinal[rows], lines.subset(rows))

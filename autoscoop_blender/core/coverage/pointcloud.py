@@ -4,6 +4,16 @@ Cast the whole ray pattern, project the hits to XY, give each hit the density of
 pattern around it, keep the hits over the threshold and take the alpha shape of the
 kept hits as the footprint; target points inside it are covered, chi interpolated
 from the hits. Rays per pose: the pattern size (30,720 for Table I's camera).
+
+A camera with a resolution also needs pixel density (``sensors`` module docstring).
+Each hit gets its pixels per metre from the pinhole geometry at the hit (its direction,
+distance and the surface normal the caster returns), exactly as ``targeted`` computes
+it at a target point: the pixels are the camera's, not the pattern's, so nothing is
+estimated from neighbouring hits. Each pixel density asked for (the model's, and
+each target area's ``dori`` above it) gets its own alpha shape of the hits that reach
+it; a target point is covered when it lies in the shape of the density it needs. The
+footprint drawn and measured is the shape at the model's own ``min_px_per_m``. A model
+without a resolution covers no point whose target area asks for pixels.
 """
 
 from __future__ import annotations
@@ -17,8 +27,8 @@ from scipy import ndimage
 from ..geom.alpha import Triangulation, alpha_mask, triangulate
 from ..geom.grid import GroundGrid
 from ..geom.raycast import RayCaster
-from ..model.sensors import SensorModel, SensorPose, frame
-from .base import SensorCoverage, cells_in_reach
+from ..model.sensors import SensorModel, SensorPose, facing_factor, frame
+from .base import SensorCoverage, cells_in_reach, pixel_need
 
 F64 = NDArray[np.float64]
 
@@ -87,7 +97,13 @@ class PointcloudEvaluator:
         rot = frame(pose.pitch_deg, pose.yaw_deg)
         dirs = self._pattern(model) @ rot  # sensor frame -> world, (nv, nh, 3)
         flat = dirs.reshape(-1, 3)
-        dist = self.caster.cast(np.broadcast_to(s, flat.shape), flat, model.range_m)
+        origins = np.broadcast_to(s, flat.shape)
+        pixels = model.resolution_px is not None
+        if pixels:
+            dist, normals = self.caster.cast_normals(origins, flat, model.range_m)
+        else:
+            dist = self.caster.cast(origins, flat, model.range_m)
+        flat_dist = dist
         dist = dist.reshape(dirs.shape[:2])
         hit = np.isfinite(dist)
         xy = np.where(hit[..., None], s[:2] + dirs[..., :2] * dist[..., None], np.nan)
@@ -97,23 +113,46 @@ class PointcloudEvaluator:
         cells, ordinal = cells_in_reach(grid, s, model.range_m, outside_band_m)
         is_target = ordinal >= 0
         qxy = grid.xy(cells)
+        pts_px = None
+        if pixels:
+            on = hit.reshape(-1)
+            facing = facing_factor(flat[on], flat_dist[on], normals[on])
+            pts_px = model.px_per_m(self._pattern(model).reshape(-1, 3)[on], facing)
 
         # The footprint is the alpha shape of the hits over the threshold (the
         # paper's filtered FoV); line of sight alone is the alpha shape of all hits.
-        dense = np.flatnonzero(pts_density >= model.min_density_per_m2)
+        # One shape per pixel density asked for; without any, one shape, as the paper.
+        need = pixel_need(grid, model, ordinal)
+        need = np.zeros(len(cells)) if need is None else need
+        own = model.min_px_per_m if pixels else 0.0
         full = outside_band_m is not None and math.isinf(outside_band_m)
-        if not full and len(dense):
-            # Only the cells asked about matter. An alpha triangle holding a cell
-            # lies within twice its radius limit of it, and its circumcircle holds no
-            # other hit; so triangulating just the hits within that distance of the
-            # cells gives exactly the triangles the cells fall in, for less work.
-            reach = 2.0 * self._max_radius(pts_spacing[dense]) + grid.spacing
-            dense = dense[_near(grid, pts[dense], qxy, reach)]
-        tri = triangulate(pts[dense])
-        keep_tri = alpha_mask(tri, self._radius_limit(tri, pts_spacing[dense]))
-        covered, simplex = _inside(tri, keep_tri, qxy, grid.spacing)
+        covered = np.zeros(len(cells), dtype=bool)
+        chi_rows = np.zeros(len(cells))
+        for level in sorted({own, *need[np.isfinite(need)].tolist()}):
+            rows = np.flatnonzero(need == level)
+            ok = pts_density >= model.min_density_per_m2
+            if pts_px is not None and level > 0:
+                ok &= pts_px >= level
+            dense = np.flatnonzero(ok)
+            if not full and len(dense):
+                # Only the cells asked about matter. An alpha triangle holding a cell
+                # lies within twice its radius limit of it, and its circumcircle holds
+                # no other hit; so triangulating just the hits within that distance of
+                # the cells gives exactly the triangles the cells fall in, for less work.
+                reach = 2.0 * self._max_radius(pts_spacing[dense]) + grid.spacing
+                dense = dense[_near(grid, pts[dense], qxy[rows], reach)]
+            tri = triangulate(pts[dense])
+            keep_tri = alpha_mask(tri, self._radius_limit(tri, pts_spacing[dense]))
+            inside, simplex = _inside(tri, keep_tri, qxy[rows], grid.spacing)
+            covered[rows] = inside
+            got = inside & is_target[rows]
+            chi_rows[rows[got]] = _interpolate(
+                tri, pts_density[dense], qxy[rows[got]], simplex[got]
+            )
+            if level == own:
+                footprint_tri, footprint_keep = tri, keep_tri
         cov_t = covered & is_target
-        chi = _interpolate(tri, pts_density[dense], qxy[cov_t], simplex[cov_t])
+        chi = chi_rows[cov_t]
 
         visible = None
         if visibility:
@@ -129,9 +168,9 @@ class PointcloudEvaluator:
             chi=chi,
             visible=visible,
             outside=cells[covered & ~is_target],
-            footprint_m2=float(tri.areas()[keep_tri].sum()) if full else None,
+            footprint_m2=float(footprint_tri.areas()[footprint_keep].sum()) if full else None,
             rays=int(flat.shape[0]),
-            _triangles=tri.points[tri.simplices[keep_tri]],
+            _triangles=footprint_tri.points[footprint_tri.simplices[footprint_keep]],
         )
 
     def _max_radius(self, spacing: F64) -> float:

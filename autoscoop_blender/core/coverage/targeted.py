@@ -1,7 +1,7 @@
 """``targeted`` coverage: one sight ray per target point that can count.
 
-Every target point within range is tested against the FoV and the pattern's analytic
-density in numpy; one ray is cast from the sensor to each point that passes, and the
+Every target point within range is tested against the FoV, the pattern's analytic
+density and (a camera with a resolution) the pixel density in numpy; one ray is cast from the sensor to each point that passes, and the
 point is covered when nothing is hit before it. Rays per pose: the points that can
 count (a few hundred for the paper camera). Exact at the grid's resolution.
 """
@@ -15,7 +15,7 @@ import numpy as np
 from ..geom.grid import GroundGrid
 from ..geom.raycast import RayCaster
 from ..model.sensors import SensorModel, SensorPose, frame
-from .base import SensorCoverage, cells_in_reach, clear_sight, sight_lines, view
+from .base import SensorCoverage, cells_in_reach, clear_sight, pixel_need, sight_lines, view
 
 
 class TargetedEvaluator:
@@ -38,9 +38,10 @@ class TargetedEvaluator:
         s = pose.position
         cells, ordinal = cells_in_reach(grid, s, model.range_m, outside_band_m)
         is_target = ordinal >= 0
-        lines = sight_lines(grid, s, cells)
-        in_view, density = view(model, frame(pose.pitch_deg, pose.yaw_deg), lines)
-        dense = in_view & (density >= model.min_density_per_m2)
+        lines = sight_lines(grid, s, cells, pixels=model.resolution_px is not None)
+        need = pixel_need(grid, model, ordinal)
+        rot = frame(pose.pitch_deg, pose.yaw_deg)
+        in_view, density, dense = view(model, rot, lines, need)
         ask = dense | (in_view & is_target) if visibility else dense
         idx = np.flatnonzero(ask)
         clear = np.zeros(len(cells), dtype=bool)

@@ -29,6 +29,43 @@ points per m^2, where ``rho_sr`` is the pattern's rays per steradian:
 ``N / (H * V * cos b)`` for ``angular`` (H, V the FoV in radians) and
 ``N / (W * T * cos^3 t)`` for ``pinhole`` (W, T the image plane's width and height at
 focal length 1, ``t`` the angle off the optical axis).
+
+Pixel density (DORI)
+--------------------
+A ``camera`` with ``pattern = "pinhole"`` may give its image ``resolution_px = (w, h)``
+and a required pixel density ``min_px_per_m`` (a number or a level of
+``DORI_PX_PER_M``: EN 62676-4's detect 25, observe 62, recognise 125, identify 250 px/m).
+Its focal lengths in pixels are ``f_x = (w / 2) / tan(H / 2)`` and
+``f_y = (h / 2) / tan(V / 2)`` (H, V the FoV; square pixels, ``f_x = f_y``, are
+required within 2 %). A patch of surface at distance ``r`` along unit direction ``d``
+with unit normal ``n`` spans the solid angle ``|d . n| / r^2`` per m^2; a solid angle
+at angle ``t`` off the optical axis spans ``1 / cos^3 t`` of image plane at focal
+length 1, which holds ``f_x f_y`` pixels per unit. So the surface receives
+
+    P = f_x * f_y * |d . n| / (r^2 * cos^3 t)        pixels per m^2 of surface
+
+(the pinhole pattern's density above with ``rays = w x h``, on the surface itself
+rather than its XY projection), and the pixel density at the point is
+
+    px_per_m = sqrt(P) = sqrt(f_x f_y |d . n| / (r^2 cos^3 t)).
+
+Why the geometric mean of the two directions on the surface (sqrt of pixels per m^2)
+and not the worse of the two: it is the px/m of a square of surface holding the same
+number of pixels, which is what recognising a thing of a given size needs; it does not
+depend on how that thing is turned within the surface; it equals the CCTV figure
+``f / depth`` (EN 62676-4, the calculators) for a surface facing the camera, anywhere
+in the image; and it follows the same law as the density of the pinhole pattern, so the
+test is as exact and cheap as that one. The worse direction would fall to 0 at grazing
+incidence and make the level depend on the heading of the target. On flat ground,
+for a camera ``h`` above it, ``|d . n| = h / r`` and ``r cos t = D`` (the depth along
+the optical axis), so ``px_per_m = sqrt(f_x f_y h / D^3)``: a level is reached up to
+the depth ``D = (f_x f_y h / px^2)^(1/3)``, a straight line across the ground footprint.
+
+A point counts for such a camera when it is in line of sight, range and FoV, the
+pattern's density reaches ``min_density_per_m2`` (0 in ``cctv_camera``) and
+``px_per_m`` reaches the larger of the model's ``min_px_per_m`` and its target area's
+``dori``. A model without a resolution (every lidar, radar and angular camera) cannot
+cover a point whose target area asks for a DORI level.
 """
 
 from __future__ import annotations
@@ -47,6 +84,15 @@ from ..errors import InputError
 KINDS = ("camera", "lidar", "radar")
 # The pixel densities of EN 62676-4's DORI levels, px per metre at the target.
 DORI_PX_PER_M = {"detect": 25.0, "observe": 62.0, "recognise": 125.0, "identify": 250.0}
+# Image width and height a camera model may give, px per axis: 50,000 is above any
+# video or survey sensor (16K video is 15,360 wide, 150 MP sensors 14,204 x 10,652).
+MAX_PX_AXIS = 50_000
+# A required pixel density above a pixel per 0.1 mm asks for no surveillance task
+# (identify, the highest DORI level, is 250 px/m).
+MAX_PX_PER_M = 10_000.0
+# Pixels are square (f_x = f_y) within this relative difference; else the FoV and the
+# resolution disagree (a typo, or a FoV left from another camera).
+MAX_PIXEL_ASPECT_ERR = 0.02
 PATTERNS = ("angular", "pinhole")
 
 # |n_z| below this counts as a vertical face; keeps the XY projection finite.
@@ -136,6 +182,8 @@ class SensorModel:
     rays_v: int
     min_density_per_m2: float
     pattern: str = "angular"
+    resolution_px: tuple[int, int] | None = None
+    min_px_per_m: float = 0.0
 
     @property
     def n_rays(self) -> int:
@@ -144,8 +192,15 @@ class SensorModel:
     # --- files -------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
         """The stable file form: the keys of the README's sensor models (kind, h_fov_deg,
-        ..., min_density_per_m2, pattern), as sensors files and results write them."""
-        return asdict(self)
+        ..., min_density_per_m2, pattern), as sensors files and results write them;
+        ``resolution_px`` (as a list) and ``min_px_per_m`` only for a camera with a
+        resolution, so every other model writes what it always did."""
+        out = asdict(self)
+        if self.resolution_px is None:
+            del out["resolution_px"], out["min_px_per_m"]
+        else:
+            out["resolution_px"] = list(self.resolution_px)
+        return out
 
     @classmethod
     def from_spec(cls, spec: Any, label: str) -> SensorModel:
@@ -174,7 +229,7 @@ class SensorModel:
             model = replace(base, **spec)
         else:
             missing = sorted(
-                f.name for f in fields(cls) if f.name not in spec and f.name != "pattern"
+                f.name for f in fields(cls) if f.name not in spec and f.name not in _OPTIONAL
             )
             if missing:
                 raise InputError(f"{label}: model misses key(s) {', '.join(missing)}")
@@ -193,6 +248,10 @@ class SensorModel:
             v = getattr(self, f.name)
             if f.name in ("kind", "pattern"):
                 values[f.name] = v
+            elif f.name == "resolution_px":
+                values[f.name] = _resolution(v, label)
+            elif f.name == "min_px_per_m":
+                values[f.name] = _px_per_m(v, label)
             elif f.name in _INTEGER_KEYS:
                 values[f.name] = whole_number(v, f.name, label, *_BOUNDS[f.name])
             else:
@@ -232,7 +291,33 @@ class SensorModel:
                 f"{label}: rays_h x rays_v = {m.n_rays:,} rays must be at most {MAX_RAYS:,} "
                 "(2048 x 2048; the paper camera casts 30,720)"
             )
-        return m
+        return m._pixels_checked(label)
+
+    def _pixels_checked(self, label: str) -> SensorModel:
+        """Self, or InputError for pixel keys on a model that cannot have them."""
+        if self.resolution_px is None:
+            if self.min_px_per_m > 0:
+                raise InputError(
+                    f"{label}: min_px_per_m {self.min_px_per_m:g} needs resolution_px "
+                    "[width, height] (the pixel density follows from the image size)"
+                )
+            return self
+        if self.kind != "camera" or self.pattern != "pinhole":
+            raise InputError(
+                f"{label}: resolution_px and min_px_per_m need kind camera with pattern "
+                f"pinhole, got kind {self.kind} with pattern {self.pattern}"
+            )
+        fx, fy = self.focal_px()
+        if abs(fx / fy - 1.0) > MAX_PIXEL_ASPECT_ERR:
+            w, h = self.resolution_px
+            v_square = math.degrees(
+                2 * math.atan(h / w * math.tan(math.radians(self.h_fov_deg) / 2))
+            )
+            raise InputError(
+                f"{label}: resolution_px {w} x {h} and h_fov_deg {self.h_fov_deg:g} give "
+                f"square pixels at v_fov_deg {v_square:.2f}, not {self.v_fov_deg:g}"
+            )
+        return self
 
     # --- geometry ----------------------------------------------------------------
     def _half_fov(self) -> tuple[float, float]:
@@ -305,6 +390,33 @@ class SensorModel:
         tu, tv = math.tan(ha), math.tan(va)
         return math.degrees(math.acos(1.0 / math.sqrt(1.0 + tu * tu + tv * tv)))
 
+    def focal_px(self) -> tuple[float, float]:
+        """(f_x, f_y): the focal length in pixels across and up the image (needs
+        ``resolution_px``): ``(w / 2) / tan(H / 2)`` and ``(h / 2) / tan(V / 2)``."""
+        assert self.resolution_px is not None
+        ha, va = self._half_fov()
+        w, h = self.resolution_px
+        return w / 2 / math.tan(ha), h / 2 / math.tan(va)
+
+    def px_per_m(
+        self, d_sensor: NDArray[np.float64], facing: NDArray[np.float64]
+    ) -> NDArray[np.float64]:
+        """(...,) pixels per metre on surfaces seen along unit directions ``d_sensor``
+        (..., 3, sensor frame) with ``facing`` = |d.n| / r^2 (``facing_factor``):
+        sqrt(f_x f_y |d.n| / (r^2 cos^3 t)), see the module docstring."""
+        fx, fy = self.focal_px()
+        fwd = np.clip(d_sensor[..., 0], 1e-12, None)
+        return np.sqrt(fx * fy * facing / (fwd * fwd * fwd))
+
+    def max_px_per_sr(self) -> float:
+        """The highest pixels per steradian anywhere in the FoV (its corners):
+        f_x f_y / cos^3 t at the corner; times ``facing`` it bounds px_per_m^2."""
+        fx, fy = self.focal_px()
+        ha, va = self._half_fov()
+        tu, tv = math.tan(ha), math.tan(va)
+        cos_corner = 1.0 / math.sqrt(1.0 + tu * tu + tv * tv)
+        return fx * fy / cos_corner**3
+
     def ground_density(
         self,
         d_sensor: NDArray[np.float64],
@@ -361,6 +473,52 @@ def surface_factor(
     )
     nz = np.clip(np.abs(normals[:, 2]), _MIN_NZ, None)
     return cos_i / (np.maximum(dist, 1e-9) ** 2 * nz)
+
+
+def facing_factor(
+    d_world: NDArray[np.float64], dist: NDArray[np.float64], normals: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """(N,) steradians per m^2 of the surface itself: |d.n| / r^2 (pixel density's
+    orientation-free part; see the module docstring). Per component, as
+    ``surface_factor``, so each row's value does not depend on the other rows."""
+    cos_i = np.abs(
+        d_world[:, 0] * normals[:, 0]
+        + d_world[:, 1] * normals[:, 1]
+        + d_world[:, 2] * normals[:, 2]
+    )
+    return cos_i / np.maximum(dist, 1e-9) ** 2
+
+
+_OPTIONAL = ("pattern", "resolution_px", "min_px_per_m")
+
+
+def _resolution(value: Any, label: str) -> tuple[int, int] | None:
+    """``value`` as (width, height) in whole pixels, None for None; else InputError."""
+    if value is None:
+        return None
+    if not isinstance(value, (list, tuple)) or len(value) != 2:
+        raise InputError(
+            f"{label}: resolution_px must be [width, height] in pixels, got {brief(value)}"
+        )
+    why = f" px (at most {MAX_PX_AXIS:,} per axis; 16K video is 15,360 wide)"
+    w = whole_number(value[0], "resolution_px width", label, 1, MAX_PX_AXIS, why)
+    h = whole_number(value[1], "resolution_px height", label, 1, MAX_PX_AXIS, why)
+    return (w, h)
+
+
+def _px_per_m(value: Any, label: str) -> float:
+    """``value`` (px/m, or a DORI level name) as a float in [0, MAX_PX_PER_M]."""
+    if isinstance(value, str):
+        name = value.strip().lower()
+        name = "recognise" if name == "recognize" else name
+        if name not in DORI_PX_PER_M:
+            raise InputError(
+                f"{label}: min_px_per_m must be px/m or a DORI level "
+                f"({', '.join(DORI_PX_PER_M)}), got {brief(value)}"
+            )
+        return DORI_PX_PER_M[name]
+    why = " px/m (identify, the highest DORI level, is 250)"
+    return number(value, "min_px_per_m", label, 0.0, MAX_PX_PER_M, why)
 
 
 # --- presets ---------------------------------------------------------------------
@@ -442,8 +600,40 @@ so the density threshold is 0; the 100 x 16 rays (one per degree) only resolve
 occlusion.
 """
 
+CCTV_CAMERA = SensorModel(
+    kind="camera",
+    h_fov_deg=80.0,
+    v_fov_deg=50.534,
+    range_m=50.0,
+    mount_height_m=7.0,
+    pitch_min_deg=15.0,
+    pitch_max_deg=60.0,
+    rays_h=192,
+    rays_v=108,
+    min_density_per_m2=0.0,
+    pattern="pinhole",
+    resolution_px=(1920, 1080),
+    min_px_per_m=DORI_PX_PER_M["detect"],
+)
+"""A fixed 1080p CCTV camera with a wide lens, judged by pixel density (DORI).
+
+1920 x 1080 pixels behind an 80 deg horizontal FoV (a 2.8 to 3.6 mm lens on a 1/2.8"
+sensor); the vertical FoV, 50.534 deg = 2 atan(1080 / 1920 tan 40 deg), makes the
+pixels square: f = 960 / tan 40 deg = 1144.1 px. It counts a point where it reaches
+the DORI level ``detect`` (25 px/m); a target area with ``dori = "recognise"`` asks
+for more there. On flat ground from the 7 m mast a level of p px/m reaches the depth
+(f^2 7 / p^2)^(1/3) along the optical axis: 24.5 m for detect, 13.4 m for observe,
+8.4 m for recognise, 5.3 m for identify (nearer than any ground from 7 m: the camera
+cannot identify on the ground from that mast; mount it lower or use a longer lens).
+The 50 m range passes detect on any surface (a face towards the camera reaches 25 px/m
+to f / 25 = 46 m). Pitch 15 to 60 deg, the usual tilt of a pole-mounted camera. The
+pattern's 192 x 108 rays (one per 10 x 10 pixels) only sample occlusion for the
+point-cloud method; the density threshold is 0, the pixels decide.
+"""
+
 PRESETS: dict[str, SensorModel] = {
     "paper_camera": PAPER_CAMERA,
     "roadside_lidar": ROADSIDE_LIDAR,
     "traffic_radar": TRAFFIC_RADAR,
+    "cctv_camera": CCTV_CAMERA,
 }
