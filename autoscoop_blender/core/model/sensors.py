@@ -500,7 +500,7 @@ def _resolution(value: Any, label: str) -> tuple[int, int] | None:
         raise InputError(
             f"{label}: resolution_px must be [width, height] in pixels, got {brief(value)}"
         )
-    why = f" px (at most {MAX_PX_AXIS:,} per axis; 16K video is 15,360 wide)"
+    why = " px (16K video, the widest, is 15,360)"
     w = whole_number(value[0], "resolution_px width", label, 1, MAX_PX_AXIS, why)
     h = whole_number(value[1], "resolution_px height", label, 1, MAX_PX_AXIS, why)
     return (w, h)
