@@ -3,7 +3,8 @@
 Sensors whose feet lie within ``join_m`` of each other (complete linkage: every pair
 of a group) would share one mast. The mast stands at one of the members' positions;
 all members move there, keeping their height, pitch and yaw. The site chosen is the
-one that keeps the most target points covered; a group whose best site would drop
+one that keeps the most target points covered (each by its k sensors, when a ``need``
+is given); a group whose best site would drop
 the coverage below what it was (or below the goal, whichever is lower) stays apart.
 """
 
@@ -43,12 +44,14 @@ def choose_sites(
     cover: Callable[[int, float, float], NDArray[np.int_]],
     n_points: int,
     keep_at_least: int,
+    need: NDArray[np.int32] | None = None,
 ) -> tuple[F64, NDArray[np.int_]]:
     """Mast sites for grouped sensors.
 
     xy: (n, 2) sensor positions; labels: their groups; ``cover(i, x, y)`` gives the
     target points (distinct indices below ``n_points``) sensor i covers when it
-    stands at (x, y). Returns the sensors' new positions (n, 2) and their final mast
+    stands at (x, y); need: (n_points,) sensors each point needs to count as covered
+    (None: 1). Returns the sensors' new positions (n, 2) and their final mast
     labels (a group that cannot merge without losing coverage below ``keep_at_least``
     is split).
 
@@ -62,7 +65,8 @@ def choose_sites(
     counts = np.zeros(n_points, dtype=np.int32)  # sensors covering each point
     for c in covers:
         counts[c] += 1
-    covered = int(np.count_nonzero(counts))
+    k = np.ones(n_points, dtype=np.int32) if need is None else np.asarray(need, dtype=np.int32)
+    covered = int(np.count_nonzero(counts >= k))
     next_label = int(labels.max()) + 1 if len(labels) else 0
     for g in range(int(labels.max()) + 1 if len(labels) else 0):
         members = np.flatnonzero(labels == g)
@@ -72,17 +76,17 @@ def choose_sites(
         # (covered, site, {moved sensor: its new cover})
         best: tuple[int, F64 | None, dict[int, NDArray[np.int64]]] = (-1, None, {})
         for site in sites:
-            moved = [k for k in members if not np.array_equal(current[k], site)]
-            new = {k: np.asarray(cover(k, *site), dtype=np.int64) for k in moved}
-            after = covered + _gain(counts, [covers[k] for k in moved], list(new.values()))
+            moved = [m for m in members if not np.array_equal(current[m], site)]
+            new = {m: np.asarray(cover(m, *site), dtype=np.int64) for m in moved}
+            after = covered + _gain(counts, [covers[m] for m in moved], list(new.values()), k)
             if after > best[0]:
                 best = (after, site, new)
         after, site, new = best
         if after >= keep_at_least:
-            for k, c in new.items():
-                counts[covers[k]] -= 1
+            for m, c in new.items():
+                counts[covers[m]] -= 1
                 counts[c] += 1
-                covers[k] = c
+                covers[m] = c
             current[members] = site
             covered = after
         else:
@@ -94,18 +98,19 @@ def choose_sites(
     return current, _renumber(final)
 
 
-def _gain(counts: NDArray[np.int32], old: list, new: list) -> int:
-    """Change in the number of covered points when covers ``old`` are replaced by
-    ``new`` (lists of index arrays); ``counts`` is left as it was."""
+def _gain(counts: NDArray[np.int32], old: list, new: list, need: NDArray[np.int32]) -> int:
+    """Change in the number of points covered to their k (``need``) when covers
+    ``old`` are replaced by ``new`` (lists of index arrays); ``counts`` is left as it
+    was."""
     if not old:
         return 0
     touched = np.unique(np.concatenate(old + new))
-    before = int(np.count_nonzero(counts[touched]))
+    before = int(np.count_nonzero(counts[touched] >= need[touched]))
     for c in old:
         counts[c] -= 1
     for c in new:
         counts[c] += 1
-    after = int(np.count_nonzero(counts[touched]))
+    after = int(np.count_nonzero(counts[touched] >= need[touched]))
     for c in new:
         counts[c] -= 1
     for c in old:

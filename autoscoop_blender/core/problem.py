@@ -71,6 +71,14 @@ def run_estimate(
     return budget.estimate_run(scene, model, settings, angles, oversample_at, workers=workers)
 
 
+def point_need(grid: GroundGrid | GridArrays, coverage_k: int) -> NDArray[np.int32]:
+    """(N,) how many sensors must cover each target point: its target area's
+    ``coverage_k`` (``grid.region_k``), or the run's ``coverage_k`` where the area sets
+    none (0)."""
+    own = np.asarray(grid.region_k, dtype=np.int32)[np.asarray(grid.target_region)]
+    return np.where(own > 0, own, np.int32(coverage_k)).astype(np.int32)
+
+
 class SearchSpace:
     """Where a sensor may stand and how it may point.
 
@@ -170,11 +178,14 @@ class Problem:
         self.space = SearchSpace(
             [a.geometry for a in scene.sensor_areas], step, model.pitch_min_deg, model.pitch_max_deg
         )
-        # The demand: rho of the target points. Every fixed sensor adds at least one
-        # point, so without a cap a run still ends after one sensor per point.
+        # The demand: rho of the target points, each covered by its k sensors
+        # (``need``). Every fixed sensor raises at least one point towards its k, so
+        # without a cap a run still ends after k_max sensors per point.
         self.rho = settings.rho
+        self.need = point_need(self.grid, settings.coverage_k)
+        self.k_max = int(self.need.max()) if len(self.need) else 1
         self.goal = math.ceil(settings.rho * self.grid.n_targets)
-        self.max_sensors = settings.max_sensors or self.grid.n_targets
+        self.max_sensors = settings.max_sensors or self.grid.n_targets * self.k_max
         self._mast: dict[tuple[float, float], tuple[float, float]] = {}
         # The candidate set, once someone built it (``candidates.build_candidates``).
         self.candidates: Any = None
@@ -184,7 +195,7 @@ class Problem:
         return self.grid.n_targets
 
     def reached(self, n_covered: int) -> bool:
-        """Whether ``n_covered`` target points meet the goal."""
+        """Whether ``n_covered`` target points (each covered to its k) meet the goal."""
         return n_covered >= self.goal
 
     # --- poses -------------------------------------------------------------------

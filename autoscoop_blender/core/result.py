@@ -32,6 +32,7 @@ from .geom.outline import occluder_outline
 from .model.scene import Area, SceneModel
 from .model.sensors import SensorModel
 from .optimize.base import PlanBound
+from .problem import point_need
 
 F64 = NDArray[np.float64]
 I32 = NDArray[np.int32]
@@ -97,7 +98,9 @@ class Result:
     view of the occluders that stand up from the terrain (buildings, walls, trees;
     ``geom.outline``), one Polygon per connected part in world XY, largest first.
     crs, crs_offset: the scene's georeference (``SceneModel.crs``; None: none), which
-    the GIS outputs (``io.georef``) apply to these world coordinates.
+    the GIS outputs (``io.georef``) apply to these world coordinates. need: (N,)
+    sensors each point needs to count as covered (its k; None: 1); area_k: the target
+    areas that set their own ``coverage_k``, (name, k).
     """
 
     sensors: tuple[SensorRecord, ...]
@@ -122,10 +125,22 @@ class Result:
     occluder_outlines: tuple[Polygon, ...] = ()
     crs: str | None = None
     crs_offset: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+    need: I32 | None = None
+    area_k: tuple[tuple[str, int], ...] = ()
+
+    @property
+    def k_need(self) -> I32:
+        """(N,) sensors each target point needs to count as covered: its target area's
+        ``coverage_k`` or the settings' (``need``; all 1 when not given)."""
+        if self.need is not None:
+            return self.need
+        return np.ones(len(self.n_covered), dtype=np.int32)
 
     @property
     def coverage_fraction(self) -> float:
-        return float((self.n_covered > 0).mean()) if len(self.n_covered) else 0.0
+        """Share of target points covered by their k sensors (k = 1: by any)."""
+        n = len(self.n_covered)
+        return float((self.n_covered >= self.k_need).mean()) if n else 0.0
 
 
 @dataclass(frozen=True)
@@ -156,6 +171,7 @@ def finish_layout(
     mast_of: Sequence[int],
     how: Provenance,
     extra_rays: int = 0,
+    need: NDArray[np.int32] | None = None,
 ) -> Result:
     """The ``Result`` of evaluated sensors (see the module docstring).
 
@@ -163,8 +179,12 @@ def finish_layout(
     per sensor, evaluated in full (``outside_band_m=inf``, with visibility); mast_of:
     (n,) each sensor's mast label 0..m-1, a mast standing where its first sensor
     stands, as tall as its tallest; extra_rays: rays the caller cast outside
-    evaluations and drops (reachability probes, candidate sets).
+    evaluations and drops (reachability probes, candidate sets); need: (N,) sensors
+    each target point needs (default: ``point_need`` of the grid and the settings'
+    ``coverage_k``).
     """
+    if need is None:
+        need = point_need(grid, int(getattr(how.settings, "coverage_k", 1) or 1))
     summary = summarize(grid, list(coverages))
     ox, oy, oz = (float(v) for v in scene.origin)
 
@@ -231,6 +251,8 @@ def finish_layout(
         evaluations=how.evaluations,
         wall_s=time.perf_counter() - how.t0,
         rays_cast=sight + drop + extra_rays,
+        need=need,
+        coverage_k=int(getattr(how.settings, "coverage_k", 1) or 1),
     )
     if hasattr(how.settings, "objective"):
         metrics.update(objective_metrics(len(sensors), len(masts), how.settings, how.bound))
@@ -250,7 +272,7 @@ def finish_layout(
         best_density=summary.best_density,
         metrics=metrics,
         stop_reason=how.stop_reason,
-        uncovered=tuple(uncovered_parts(grid, summary.n_covered == 0, scene)),
+        uncovered=tuple(uncovered_parts(grid, summary.n_covered < need, scene)),
         warnings=how.warnings,
         scene=scene.source,
         origin=np.asarray(scene.origin, dtype=float),
@@ -261,6 +283,8 @@ def finish_layout(
         occluder_outlines=outlines,
         crs=scene.crs,
         crs_offset=scene.crs_offset,
+        need=need,
+        area_k=tuple((a.name, int(a.coverage_k)) for a in scene.targets if a.coverage_k),
     )
 
 
@@ -273,10 +297,16 @@ def layout_metrics(
     evaluations: int,
     wall_s: float,
     rays_cast: int,
+    need: NDArray[np.int32] | None = None,
+    coverage_k: int = 1,
 ) -> dict[str, Any]:
     """The paper's metrics of a layout.
 
-    coverage_fraction, covered_m2, target_area_m2; sensors, masts, cluster_ratio =
+    coverage_fraction, covered_m2: the points covered by their k sensors (``need``,
+    (N,), default 1 each: the paper's); coverage_k: the settings' k, coverage_k_max:
+    the largest k of any point (a target area may ask more); coverage_by_k: for k =
+    1, 2, 3 the fraction and m^2 of the target covered by at least k sensors;
+    target_area_m2; sensors, masts, cluster_ratio =
     masts / sensors; relative_sensor_coverage = mean footprint / the model's largest
     flat-ground footprint (``reference_footprint_m2``; with several models, the mean
     of each sensor's ratio); overlap_factor = sum of per-sensor covered target m^2 /
@@ -294,10 +324,14 @@ def layout_metrics(
         relative = round(float(np.mean(np.divide(footprints, refs))), 4)
     else:
         relative = None
-    covered = int(np.count_nonzero(n_covered))
+    k = np.ones(len(n_covered), dtype=np.int32) if need is None else need
+    covered = int(np.count_nonzero(n_covered >= k))
     return {
         "coverage_fraction": round(covered / max(len(n_covered), 1), 6),
         "covered_m2": covered * cell_area,
+        "coverage_k": int(coverage_k),
+        "coverage_k_max": int(k.max()) if len(k) else int(coverage_k),
+        "coverage_by_k": coverage_by_k(n_covered, cell_area),
         "target_area_m2": target_m2,
         "sensors": n,
         "masts": n_masts,
@@ -310,6 +344,19 @@ def layout_metrics(
         "wall_s": round(wall_s, 2),
         "rays_cast": rays_cast,
     }
+
+
+def coverage_by_k(
+    n_covered: NDArray[np.int32], cell_area: float, ks: Sequence[int] = (1, 2, 3)
+) -> dict[str, dict[str, float]]:
+    """For each k of ``ks`` (keys "1", "2", ...): the fraction of the target points
+    covered by at least k sensors and the m^2 they stand for."""
+    n = max(len(n_covered), 1)
+    out = {}
+    for k in ks:
+        hit = int(np.count_nonzero(np.asarray(n_covered) >= k))
+        out[str(k)] = {"fraction": round(hit / n, 6), "m2": round(hit * cell_area, 4)}
+    return out
 
 
 def objective_metrics(

@@ -63,7 +63,9 @@ class Run:
         self.problem = Problem(scene, make_caster(), model, settings, workers)
         self.settings = self.problem.settings
         self.on_fixed = on_fixed
-        self.solution = Solution(np.zeros(self.problem.n_targets, dtype=bool))
+        self.solution = Solution(
+            np.zeros(self.problem.n_targets, dtype=bool), need=self.problem.need.copy()
+        )
         for record in resume:
             self._replay(record)
         self.optimizer = self._optimizer(make_caster, workers)
@@ -157,9 +159,11 @@ class Run:
         p = self.problem
         pose = p.pose(record["x"], record["y"], record["pitch_deg"], record["yaw_deg"])
         cov = p.evaluate(pose)
-        newly = newly_covered(self.solution.covered, cov.covered)
+        newly = newly_covered(self.solution, cov.covered)
         self.solution.fix(
-            FixedSensor(pose, record["fitness"], record["epochs"], record["evaluations"], newly)
+            FixedSensor(
+                pose, record["fitness"], record["epochs"], record["evaluations"], newly, cov.covered
+            )
         )
         self.solution.state = {k: record[k] for k in ("rng_state",) if k in record}
         # Time, rays and evaluations spent before the interruption still count.
@@ -182,7 +186,7 @@ class Run:
             return p.evaluate(p.pose(x, y, pose.pitch_deg, pose.yaw_deg)).covered
 
         keep = min(self.solution.n_covered, p.goal)
-        new_xy, labels = choose_sites(xy, labels, cover, p.n_targets, keep)
+        new_xy, labels = choose_sites(xy, labels, cover, p.n_targets, keep, p.need)
         poses = [
             p.pose(x, y, s.pose.pitch_deg, s.pose.yaw_deg) for s, (x, y) in zip(sensors, new_xy)
         ]
@@ -204,4 +208,6 @@ class Run:
             model=p.model,
             bound=s.bound,
         )
-        return finish_layout(p.scene, p.grid, coverages, mast_of, how, p.probe.extra_rays)
+        return finish_layout(
+            p.scene, p.grid, coverages, mast_of, how, p.probe.extra_rays, need=p.need
+        )

@@ -282,6 +282,16 @@ class CoverageSettings:
         None, "pointcloud: a fixed alpha radius, m, instead of alpha", lo=0.0, lo_open=True
     )
     mast_join_m: float = knob(3.0, "sensors this close share a mast, m", lo=0.0)
+    coverage_k: int = knob(
+        1,
+        "redundancy: sensors that must cover a target point for it to count (a target "
+        "curve's coverage_k property overrides it for its area)",
+        lo=1,
+        hi=10,
+        flag="--coverage-k",
+        label="Coverage k",
+        soft=(1, 10),
+    )
 
     def validated(self: T) -> T:
         """Self, or InputError naming the first knob out of range."""
@@ -366,7 +376,7 @@ class OptimizeSettings(CoverageSettings):
     )
     rho: float = knob(
         0.97,
-        "coverage goal: fraction of the target points to cover (the paper's rho)",
+        "coverage goal: fraction of the target points to cover, each to its k (the paper's rho)",
         lo=0.0,
         lo_open=True,
         hi=1.0,

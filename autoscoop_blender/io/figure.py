@@ -103,9 +103,10 @@ def render_png(
 ) -> bytes:
     """The coverage map (see the module docstring) as PNG bytes, ``width_px`` wide.
 
-    k_required: the coverage the plan asks for per target point; None reads
-    ``result.settings.k`` and falls back to 1. With k > 1 every target cell is
-    coloured by how many sensors cover it.
+    k_required: the coverage the plan asks for per target point; None reads the
+    result's per-point k (``Result.need``: a target area may ask more than the
+    settings), else ``result.settings.coverage_k`` (or ``k``), and falls back to 1.
+    With k > 1 every target cell is coloured by how many sensors cover it.
     """
     from matplotlib.style import context
 
@@ -140,7 +141,7 @@ def coverage_figure(
         raise ValueError(f"width_px must be at least {MIN_WIDTH_PX}, got {width_px}")
     if margin_m < 0:
         raise ValueError(f"margin_m must not be negative, got {margin_m}")
-    k = int(k_required if k_required is not None else getattr(result.settings, "k", 1) or 1)
+    k = int(k_required if k_required is not None else required_k(result))
     if k < 1:
         raise ValueError(f"k_required must be at least 1, got {k}")
 
@@ -194,12 +195,20 @@ def summary(result: Result, k: int = 1) -> str:
     sensors = m.get("sensors", len(result.sensors))
     masts = m.get("masts", len(result.masts))
     fraction = m.get("coverage_fraction", result.coverage_fraction)
+    if k > 1:  # coverage by any sensor first; the k-coverage next
+        fraction = k_fraction(result, 1)
     parts = [f"{sensors} sensor{'s' * (sensors != 1)} on {masts} mast{'s' * (masts != 1)}"]
     cover = f"coverage {100 * fraction:.1f} %"
     if m.get("target_area_m2"):
         cover += f" of {m['target_area_m2']:,.0f} m²"
     parts.append(cover)
-    if k > 1:
+    need = result.need
+    if k > 1 and need is not None and len(need) and int(need.min()) != int(need.max()):
+        to_k = float((np.asarray(result.n_covered) >= need).mean())
+        parts.append(
+            f"covered to each area's k ({int(need.min())}–{int(need.max())}): {100 * to_k:.1f} %"
+        )
+    elif k > 1:
         parts.append(f"covered by ≥ {k} sensors: {100 * k_fraction(result, k):.1f} %")
     if m.get("objective") is not None:
         name = str(getattr(result.settings, "objective", "objective"))
@@ -240,6 +249,16 @@ def details(result: Result) -> str:
     if len(result.points):
         parts.append(f"{result.cell_m:g} m target grid")
     return "  ·  ".join(parts)
+
+
+def required_k(result: Result) -> int:
+    """The k the map colours up to: the largest of the result's per-point k
+    (``Result.need``), else the settings' ``coverage_k`` (or ``k``), else 1."""
+    if result.need is not None and len(result.need):
+        return max(1, int(np.max(result.need)))
+    settings = result.settings
+    k = getattr(settings, "coverage_k", None) or getattr(settings, "k", None) or 1
+    return int(k)
 
 
 def k_fraction(result: Result, k: int) -> float:

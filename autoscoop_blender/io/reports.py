@@ -67,6 +67,8 @@ def result_dict(result: Result, extra_versions: dict[str, str] | None = None) ->
         "settings": settings.to_dict(),
         "model": result.model.to_dict(),
         "versions": {**versions(), **(extra_versions or {})},
+        "coverage_k": _k_in_effect(result),
+        "coverage_by_k": result.metrics.get("coverage_by_k"),
         "metrics": result.metrics,
         "stop_reason": result.stop_reason,
         "uncovered": list(result.uncovered),
@@ -114,6 +116,8 @@ def coverage_dict(result: Result) -> dict[str, Any]:
         "target_points": len(result.points),
         "covered_m2": m["covered_m2"],
         "coverage_fraction": m["coverage_fraction"],
+        "coverage_k": _k_in_effect(result),
+        "coverage_by_k": m.get("coverage_by_k"),
         "sensors": [
             {
                 "n": s.n,
@@ -138,6 +142,18 @@ def coverage_dict(result: Result) -> dict[str, Any]:
         "wall_s": m["wall_s"],
         "origin": [float(v) for v in result.origin],
         "warnings": list(result.warnings),
+    }
+
+
+def _k_in_effect(result: Result) -> dict[str, Any]:
+    """The k the coverage figures were counted at: the settings' ``coverage_k``, the
+    largest any point needs, and the target areas that ask their own (name: k)."""
+    k = int(getattr(result.settings, "coverage_k", 1) or 1)
+    need = result.need
+    return {
+        "setting": k,
+        "max": int(np.max(need)) if need is not None and len(need) else k,
+        "areas": dict(result.area_k),
     }
 
 

@@ -106,7 +106,7 @@ def test_the_config_file_reads_model_and_settings(tmp_path):
 def test_the_panel_shows_the_labelled_knobs():
     shown = {s.path for s in PANEL_SETTINGS}
     assert shown == {
-        "method", "grid_m", "optimizer", "rho", "seed", "objective",
+        "method", "grid_m", "coverage_k", "optimizer", "rho", "seed", "objective",
         "es.mu", "es.lam", "es.eps", "es.max_epochs",
     }  # fmt: skip
     assert all(s.knob.label for s in PANEL_SETTINGS)

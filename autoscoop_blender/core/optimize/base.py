@@ -26,14 +26,17 @@ from ..problem import Problem
 @dataclass(frozen=True)
 class FixedSensor:
     """A sensor an optimizer fixed: its pose (local metres, degrees), its fitness (the
-    ES's f_s; greedy: the points it added), the ES epochs and evaluations it took,
-    and the target ordinals it newly covered when it was fixed."""
+    ES's f_s; greedy: the points it raised towards their k), the ES epochs and
+    evaluations it took, the target ordinals it newly covered to their k when it was
+    fixed, and ``seen``: every target ordinal it covers (None: the same as ``newly``,
+    which is all a sensor can add when every k is 1)."""
 
     pose: SensorPose
     fitness: float
     epochs: int
     evaluations: int
     newly: NDArray[np.int64]
+    seen: NDArray[np.int64] | None = None
 
     @property
     def new_points(self) -> int:
@@ -128,7 +131,9 @@ class StopReason:
 class Solution:
     """Sensors fixed so far, in order, and the target points they cover.
 
-    covered: (N,) bool over the grid's target points. evaluations, sight_rays: what
+    covered: (N,) bool over the grid's target points: covered by at least their k
+    sensors (``need``, (N,), default all 1; ``counts``: how many cover each now).
+    evaluations, sight_rays: what
     the optimizer spent (pose evaluations, sight rays cast by them). state: what the
     optimizer needs to go on after the last sensor exactly as it would have (the ES:
     its random generator's state); JSON-ready, written to checkpoints. bound: what no
@@ -142,9 +147,14 @@ class Solution:
     sight_rays: int = 0
     state: dict[str, Any] = field(default_factory=dict)
     bound: PlanBound | None = None
+    need: NDArray[np.int32] | None = None
     n_covered: int = field(init=False)
+    counts: NDArray[np.int32] = field(init=False)
 
     def __post_init__(self) -> None:
+        if self.need is None:
+            self.need = np.ones(len(self.covered), dtype=np.int32)
+        self.counts = np.where(self.covered, self.need, 0).astype(np.int32)
         self.n_covered = int(np.count_nonzero(self.covered))
 
     @property
@@ -153,10 +163,17 @@ class Solution:
         return self.n_covered / max(len(self.covered), 1)
 
     def fix(self, sensor: FixedSensor) -> None:
-        """Add ``sensor``; its ``newly`` must be points not covered before."""
+        """Add ``sensor``; its ``newly`` must be the points of ``seen`` one short of
+        their k before (``newly_covered``)."""
         self.sensors.append(sensor)
+        self.counts[sensor.newly if sensor.seen is None else sensor.seen] += 1
         self.covered[sensor.newly] = True
         self.n_covered += sensor.new_points
+
+    def short(self) -> NDArray[np.bool_]:
+        """(N,) the points still below their k."""
+        assert self.need is not None
+        return self.counts < self.need
 
     def progress(
         self,
@@ -195,20 +212,23 @@ class Optimizer(Protocol):
         ...
 
 
-def newly_covered(covered: NDArray[np.bool_], ordinals: NDArray[np.int64]) -> NDArray[np.int64]:
-    """The ``ordinals`` (target points a pose covers) not in ``covered`` yet."""
-    return ordinals[~covered[ordinals]]
+def newly_covered(solution: Solution, ordinals: NDArray[np.int64]) -> NDArray[np.int64]:
+    """The ``ordinals`` (target points a pose covers) that one more sensor brings to
+    their k: those one short of it (with k = 1: those not covered yet)."""
+    assert solution.need is not None
+    return ordinals[solution.counts[ordinals] == solution.need[ordinals] - 1]
 
 
 def fix_candidate(problem: Problem, solution: Solution, cands: CandidateSet, c: int) -> FixedSensor:
     """Fix candidate ``c`` as a sensor: its pose evaluated afresh (the rays counted),
-    its fitness the points it newly covers."""
+    its fitness the points it raises towards their k (with k = 1: newly covers)."""
     pose = cands.pose(problem, c)
     cov = problem.evaluate(pose)
     solution.sight_rays += cov.rays
     solution.evaluations += 1
-    newly = newly_covered(solution.covered, cov.covered)
-    sensor = FixedSensor(pose, float(len(newly)), 0, 0, newly)
+    newly = newly_covered(solution, cov.covered)
+    gain = int(np.count_nonzero(solution.short()[cov.covered]))
+    sensor = FixedSensor(pose, float(gain), 0, 0, newly, cov.covered)
     solution.fix(sensor)
     return sensor
 
@@ -223,3 +243,16 @@ def candidates_of(problem: Problem, solution: Solution) -> Generator[Progress, N
             cands: CandidateSet = done.value
             return cands
         yield solution.progress("search", problem.rho)
+
+
+def taken_candidates(cands: CandidateSet, solution: Solution) -> NDArray[np.int64]:
+    """The candidates whose poses are sensors of ``solution`` already (a resumed run)."""
+    if not solution.sensors:
+        return np.zeros(0, dtype=np.int64)
+    fixed = {(s.pose.x, s.pose.y, s.pose.pitch_deg, s.pose.yaw_deg) for s in solution.sensors}
+    xy = cands.positions[cands.position]
+    ang = cands.angles[0][cands.orientation]
+    keys = zip(xy[:, 0], xy[:, 1], ang[:, 0], ang[:, 1])
+    return np.array(
+        [c for c, key in enumerate(keys) if tuple(map(float, key)) in fixed], dtype=np.int64
+    )

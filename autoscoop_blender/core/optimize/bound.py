@@ -106,9 +106,14 @@ def _empty_rows(h: highspy.Highs, lower: F64, upper: F64) -> None:
 
 
 def _add_columns(
-    h: highspy.Highs, matrix: sparse.csr_matrix, cost: F64, upper: float | F64
+    h: highspy.Highs,
+    matrix: sparse.csr_matrix,
+    cost: F64,
+    upper: float | F64,
+    values: F64 | None = None,
 ) -> None:
-    """Columns of the LP from rows of a CSR matrix (a candidate's points are its rows)."""
+    """Columns of the LP from rows of a CSR matrix (a candidate's points are its rows),
+    every entry 1 or, given, ``values`` (one per stored entry)."""
     n = matrix.shape[0]
     h.addCols(
         n,
@@ -118,7 +123,7 @@ def _add_columns(
         matrix.nnz,
         matrix.indptr[:-1].astype(np.int32),
         matrix.indices.astype(np.int32),
-        np.ones(matrix.nnz),
+        np.ones(matrix.nnz) if values is None else np.asarray(values, dtype=float),
     )
 
 
@@ -131,15 +136,19 @@ def _new_highs(time_limit_s: float | None) -> highspy.Highs:
     return h
 
 
-def _cover_rows(h: highspy.Highs, n_points: int, goal: int) -> None:
-    """Rows ``covering - u_n >= 0`` for every point, ``sum u >= goal``, and the u."""
+def _cover_rows(
+    h: highspy.Highs, n_points: int, goal: int, need: NDArray[np.int32] | None = None
+) -> None:
+    """Rows ``covering - k_n u_n >= 0`` for every point (k_n: ``need``, default 1),
+    ``sum u >= goal``, and the u."""
     inf = highspy.kHighsInf
     _empty_rows(h, np.concatenate([np.zeros(n_points), [float(goal)]]), np.full(n_points + 1, inf))
     idx = np.empty(2 * n_points, dtype=np.int32)
     idx[0::2] = np.arange(n_points)
     idx[1::2] = n_points
     val = np.empty(2 * n_points)
-    val[0::2], val[1::2] = -1.0, 1.0
+    val[0::2] = -1.0 if need is None else -np.asarray(need, dtype=float)
+    val[1::2] = 1.0
     starts = (np.arange(n_points) * 2).astype(np.int32)
     h.addCols(
         n_points,
@@ -188,6 +197,10 @@ class LPSolution:
     slope: float = 0.0
     intercept: float = 0.0
     parts: int = 1
+    # With k > 1 (candidates bounded by 1): the value of the last point duals alone,
+    # sigma goal - sum_n max(0, sigma - k_n pi_n), for ``mast_aware_bound`` (nan: use
+    # ``value``, which equals it when every k is 1).
+    dual: float = math.nan
 
     def integer_bound(self) -> int:
         """The bound on an integer objective: the next integer at or above it."""
@@ -216,12 +229,14 @@ def cover_lp(
     after each round.
     """
     matrix, n = inst.matrix, inst.n_points
+    need = inst.k
+    multi = inst.multi
     h = _new_highs(None)
-    _cover_rows(h, n, inst.goal)
-    # The artificial demand slack: 1 per point, so the restricted LP is always feasible.
+    _cover_rows(h, n, inst.goal, need if multi else None)
+    # The artificial demand slack: k per point, so the restricted LP is always feasible.
     h.addCols(
         1,
-        np.ones(1),
+        np.full(1, float(need.max()) if multi else 1.0),
         np.zeros(1),
         np.full(1, highspy.kHighsInf),
         1,
@@ -238,7 +253,8 @@ def cover_lp(
         in_lp[cols] = True
         order.extend(int(c) for c in cols)
         if len(cols):
-            _add_columns(h, matrix[cols], cost[cols], highspy.kHighsInf)
+            # With k > 1 a candidate counts once: x_c <= 1 (with k = 1 it never needs more).
+            _add_columns(h, matrix[cols], cost[cols], 1.0 if multi else highspy.kHighsInf)
 
     add(np.unique(np.asarray(initial, dtype=np.int64)))
     best, line = 0.0, (0.0, 0.0)
@@ -261,12 +277,22 @@ def cover_lp(
         with np.errstate(divide="ignore"):
             scale = min(1.0, float(np.min(np.where(priced > 0, cost / priced, np.inf))))
         # The scaled duals are feasible for the full LP's dual at every goal g: its
-        # value there, scale (sigma g - sum_n max(0, sigma - pi_n)), is a line in g.
+        # value there, scale (sigma g - sum_n max(0, sigma - k_n pi_n)), is a line in g.
+        excess = np.maximum(0.0, sigma - need * duals) if multi else np.maximum(0.0, sigma - duals)
         slope = scale * sigma * (1 - SAFETY)
-        intercept = scale * float(np.maximum(0.0, sigma - duals).sum()) + SAFETY
+        intercept = scale * float(excess.sum()) + SAFETY
         if slope * inst.goal - intercept > best:
             best, line = slope * inst.goal - intercept, (slope, intercept)
-        best = max(best, scale * value * (1 - SAFETY) - SAFETY)
+        dual = math.nan
+        if multi:
+            # x_c <= 1: the restricted LP's value holds the bounds' duals too, so it is
+            # not scaled; instead the unscaled duals, each candidate's bound dual
+            # max(0, -reduced_c) paying for its negative reduced cost (Lagrangian).
+            dual = inst.goal * sigma - float(excess.sum())
+            lagrange = dual - float(np.maximum(0.0, -reduced).sum())
+            best = max(best, lagrange * (1 - SAFETY) - SAFETY)
+        else:
+            best = max(best, scale * value * (1 - SAFETY) - SAFETY)
         yield LPProgress(rounds, value, best, len(order))
         # Columns in the LP priced below 0 only by round-off (duals clipped at 0) are
         # not new: the LP is complete when no other candidate is.
@@ -281,7 +307,7 @@ def cover_lp(
         x = np.asarray(sol.col_value)[first:]
         last = LPSolution(
             value, best, np.array(order, dtype=np.int64), x, priced, reduced, rounds, complete,
-            *line,
+            *line, dual=dual,
         )  # fmt: skip
         if complete or done_int or done_gap or late:
             return last
@@ -377,7 +403,8 @@ def split_cover_lp(
     matrix = inst.matrix
     n_parts = int(part.max()) + 1 if len(part) else 1
     sizes = np.maximum(np.diff(matrix.indptr), 1)
-    coverable_all = np.bincount(matrix.indices, minlength=inst.n_points) > 0
+    # A point can be covered when at least its k candidates see it.
+    coverable_all = np.bincount(matrix.indices, minlength=inst.n_points) >= inst.k
     coverable = [int(np.count_nonzero(coverable_all[part == k])) for k in range(n_parts)]
     total = max(sum(coverable), 1)
     lines = [(0.0, 0.0)] * n_parts  # parts not solved yet: 0 for any goal
@@ -396,7 +423,8 @@ def split_cover_lp(
         goal = min(coverable[k], math.ceil(inst.goal * coverable[k] / total))
         start = np.flatnonzero(np.isin(rows, initial))
         lp = yield from _quiet(cover_lp(
-            CoverInstance(sub, goal), share, group[rows], start, integral=False,
+            CoverInstance(sub, goal, need=inst.k[points]), share, group[rows], start,
+            integral=False,
             deadline=deadline, stop=stop, rel_gap=rel_gap,
         ))  # fmt: skip
         if not np.isfinite(lp.value):  # stopped before its first solve
@@ -430,6 +458,7 @@ def mast_aware_bound(lp: LPSolution, site_of: I64, mast_cost: float, sensor_cost
     parts (their duals are not one dual solution of the whole)."""
     if not np.isfinite(lp.value) or len(lp.priced) == 0 or sensor_cost <= 0 or lp.parts > 1:
         return 0.0
+    value = lp.value if math.isnan(lp.dual) else lp.dual
     n_sites = int(site_of.max()) + 1
 
     def fits(t: float) -> bool:
@@ -442,7 +471,7 @@ def mast_aware_bound(lp: LPSolution, site_of: I64, mast_cost: float, sensor_cost
     for _ in range(50):  # bisection; lo stays feasible
         mid = (lo + hi) / 2
         lo, hi = (mid, hi) if fits(mid) else (lo, mid)
-    return max(0.0, lo * sensor_cost * lp.value * (1 - SAFETY) - SAFETY)
+    return max(0.0, lo * sensor_cost * value * (1 - SAFETY) - SAFETY)
 
 
 @dataclass(frozen=True)
@@ -477,14 +506,21 @@ def site_cover(
     )
     sites = (pick @ sparse.csr_matrix((np.ones(m.nnz), m.indices, m.indptr), shape=m.shape)).tocsr()
     n = inst.n_points
+    # With k > 1 an open site adds up to min(its candidates covering n, k_n) to point n
+    # (every plan's sensors there are among those candidates); with k = 1, 1.
+    need = inst.k if inst.multi else None
+    values = None
+    if need is not None:
+        sites.sort_indices()
+        values = np.minimum(sites.data, need[sites.indices]).astype(float)
 
     def model() -> highspy.Highs:
         # A fresh model for each solve: HiGHS' MILP on a model whose LP was solved
         # before took 92 s on two_routes where a fresh one takes 11 s.
         limit = None if deadline is None else deadline - time.perf_counter()
         h = _new_highs(limit)
-        _cover_rows(h, n, inst.goal)
-        _add_columns(h, sites, np.ones(n_sites), 1.0)
+        _cover_rows(h, n, inst.goal, need)
+        _add_columns(h, sites, np.ones(n_sites), 1.0, values)
         return h
 
     h = model()
@@ -540,7 +576,7 @@ def sensors_on_sites(
     limit = None if deadline is None else deadline - time.perf_counter()
     h = _new_highs(limit)
     h.setOptionValue("mip_max_nodes", MAX_NODES)
-    _cover_rows(h, n, inst.goal)
+    _cover_rows(h, n, inst.goal, inst.k if inst.multi else None)
     _add_columns(h, inst.matrix[cols], np.full(n_cols, sensor_cost), 1.0)
     none = np.zeros(0, dtype=np.int32)
     h.addCols(n_sites, np.full(n_sites, mast_cost), np.zeros(n_sites), np.ones(n_sites), 0,
@@ -557,9 +593,10 @@ def sensors_on_sites(
         len(binary), binary, np.array([highspy.HighsVarType.kInteger] * len(binary))
     )
     picked = np.isin(cols, start)
-    covered = np.zeros(n, dtype=bool)
+    count = np.zeros(n, dtype=np.int32)
     for c in cols[picked]:
-        covered[inst.covers(int(c))] = True
+        count[inst.covers(int(c))] += 1
+    covered = count >= inst.k
     first = highspy.HighsSolution()
     first.col_value = (
         np.concatenate([covered, picked, np.isin(np.arange(n_sites), site_idx[picked])])

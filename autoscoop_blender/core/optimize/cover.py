@@ -1,8 +1,9 @@
 """Partial set cover on the candidate set: the moves a plan is built and improved with.
 
 The instance: candidates (rows of the candidate matrix), target points (columns), and
-the goal: at least ``goal`` points covered. A ``Cover`` is a set of chosen candidates
-with the number of them covering each point. The moves, each cheap enough to repeat
+the goal: at least ``goal`` points covered, each by its k candidates (``need``;
+multicover, every k = 1 by default; a candidate is chosen once at most). A ``Cover``
+is a set of chosen candidates with the number of them covering each point. The moves, each cheap enough to repeat
 thousands of times on 130,000 candidates:
 
 * ``complete``: add the candidate that covers the most points still uncovered (or
@@ -33,12 +34,29 @@ I64 = NDArray[np.int64]
 @dataclass
 class CoverInstance:
     """matrix: (C, N) CSR, 1 where candidate c covers point n; goal: points to cover;
-    xy: (N, 2) where the points are, m (None if not known)."""
+    xy: (N, 2) where the points are, m (None if not known); need: (N,) candidates
+    that must cover each point for it to count (None: 1 each)."""
 
     matrix: sparse.csr_matrix
     goal: int
     xy: NDArray[np.float64] | None = None
+    need: NDArray[np.int32] | None = None
     _by_point: sparse.csc_matrix | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.need is None:
+            self.need = np.ones(self.matrix.shape[1], dtype=np.int32)
+
+    @property
+    def k(self) -> NDArray[np.int32]:
+        """(N,) ``need``, always set."""
+        assert self.need is not None
+        return self.need
+
+    @property
+    def multi(self) -> bool:
+        """Whether some point needs more than one candidate."""
+        return bool(len(self.k) and int(self.k.max()) > 1)
 
     @property
     def n_points(self) -> int:
@@ -70,24 +88,30 @@ class Cover:
 
     @property
     def slack(self) -> int:
-        """Covered points beyond the goal (negative: short of it)."""
+        """Points covered to their k beyond the goal (negative: short of it)."""
         return self.n_covered - self.inst.goal
 
     def add(self, c: int) -> None:
         pts = self.inst.covers(c)
-        self.n_covered += int(np.count_nonzero(self.count[pts] == 0))
+        self.n_covered += int(np.count_nonzero(self.count[pts] == self.inst.k[pts] - 1))
         self.count[pts] += 1
         self.chosen.append(int(c))
 
     def remove(self, c: int) -> None:
         pts = self.inst.covers(c)
         self.count[pts] -= 1
-        self.n_covered -= int(np.count_nonzero(self.count[pts] == 0))
+        self.n_covered -= int(np.count_nonzero(self.count[pts] == self.inst.k[pts] - 1))
         self.chosen.remove(int(c))
 
+    def short(self) -> NDArray[np.bool_]:
+        """(N,) the points below their k."""
+        return self.count < self.inst.k
+
     def exclusive(self, c: int) -> int:
-        """Points only chosen candidate ``c`` covers (lost if it is removed)."""
-        return int(np.count_nonzero(self.count[self.inst.covers(c)] == 1))
+        """Points that drop below their k if chosen candidate ``c`` is removed (k = 1:
+        the points only it covers)."""
+        pts = self.inst.covers(c)
+        return int(np.count_nonzero(self.count[pts] == self.inst.k[pts]))
 
 
 def complete(
@@ -104,7 +128,9 @@ def complete(
     inst = cover.inst
     sub = inst.matrix[pool]
     by_point = sub.tocsc()
-    gains = np.asarray(sub @ (cover.count == 0).astype(np.float32)).ravel()
+    gains = np.asarray(sub @ cover.short().astype(np.float32)).ravel()
+    # A candidate is chosen once at most (with k > 1 a chosen one may still gain).
+    gains[np.isin(pool, cover.chosen)] = -1.0
     price = np.ones(len(pool))
     if site_of is not None:
         site = site_of[pool]
@@ -117,12 +143,13 @@ def complete(
             break
         c = int(pool[k])
         new = inst.covers(c)
-        new = new[cover.count[new] == 0]
+        new = new[cover.count[new] == inst.k[new] - 1]
         cover.add(c)
         if site_of is not None:
             price[site == site_of[c]] = max(sensor_cost, 1e-9)
-        # Points covered now add nothing to any candidate any more.
+        # Points covered to their k now add nothing to any candidate any more.
         gains -= np.asarray(by_point[:, new].sum(axis=1)).ravel()
+        gains[k] = -1.0
     return cover
 
 
@@ -180,17 +207,23 @@ def swap_two_for_one(cover: Cover, pool: I64, by_point: sparse.csr_matrix | None
         ((a, b) for i, a in enumerate(chosen) for b in chosen[i + 1 :]),
         key=lambda p: alone[p[0]] + alone[p[1]],
     )
+    taken = np.isin(pool, chosen) if inst.multi else None
     for a, b in pairs:
         pa, pb = inst.covers(a), inst.covers(b)
         both = np.union1d(pa, pb)
         left = cover.count[both] - np.isin(both, pa) - np.isin(both, pb)
-        lost = both[left == 0]
+        k_both = inst.k[both]
+        lost = both[(cover.count[both] >= k_both) & (left < k_both)]
         need = len(lost) - cover.slack
         if need <= 0:
             cover.remove(a)
             cover.remove(b)
             return True
-        gains = np.asarray(by_point[lost].sum(axis=0)).ravel()
+        # One candidate brings back only the lost points one short of their k.
+        back = both[(cover.count[both] >= k_both) & (left == k_both - 1)]
+        gains = np.asarray(by_point[back].sum(axis=0)).ravel()
+        if taken is not None:  # k > 1: not a chosen candidate, save the two that leave
+            gains[taken & ~np.isin(pool, (a, b))] = -1.0
         k = int(np.argmax(gains))
         if gains[k] >= need:
             cover.remove(a)

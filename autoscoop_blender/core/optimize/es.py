@@ -173,10 +173,10 @@ class EvolutionStrategy:
         if "rng_state" in solution.state:
             self.rng.bit_generator.state = solution.state["rng_state"]
         # The fitness state, and the same as marks for the workers to catch up with.
-        self.fixed = FixedSensors(np.zeros(problem.n_targets, dtype=bool))
+        self.fixed = FixedSensors(np.zeros(problem.n_targets, dtype=bool), need=problem.need)
         self.log: list[FixedMark] = []
         for sensor in solution.sensors:
-            self._mark(sensor.newly, sensor.pose)
+            self._mark(sensor.newly if sensor.seen is None else sensor.seen, sensor.pose)
         ref = reference_footprint_m2(problem.model, s.grid_m)
         min_gain = max(1, round(0.01 * ref / problem.grid.cell_area))
         stale = 0
@@ -214,8 +214,8 @@ class EvolutionStrategy:
                     continue
                 stale = 0
                 newly = self.fixed.add(cov)
-                self.log.append((newly, (pose.x, pose.y)))
-                sensor = FixedSensor(pose, fit.f_s, epochs, evals, newly)
+                self.log.append((cov.covered, (pose.x, pose.y)))
+                sensor = FixedSensor(pose, fit.f_s, epochs, evals, newly, cov.covered)
                 solution.fix(sensor)
                 solution.state = {"rng_state": self.rng.bit_generator.state}
                 yield solution.progress("fixed", s.rho, fixed=sensor)
@@ -223,9 +223,9 @@ class EvolutionStrategy:
             self.close()
         return solution
 
-    def _mark(self, newly: NDArray[np.int64], pose: SensorPose) -> None:
-        self.fixed.mark(newly, (pose.x, pose.y))
-        self.log.append((newly, (pose.x, pose.y)))
+    def _mark(self, seen: NDArray[np.int64], pose: SensorPose) -> None:
+        self.fixed.mark(seen, (pose.x, pose.y))
+        self.log.append((seen, (pose.x, pose.y)))
 
     def _evaluate(self, pose: SensorPose) -> tuple[SensorCoverage, Fitness]:
         cov = self.problem.evaluate(pose, self.params.band_m)
@@ -277,7 +277,7 @@ class EvolutionStrategy:
         positions = problem.space.positions
         if coarse:
             positions = positions[problem.space.every(4)]
-        wanted = ~self.fixed.covered
+        wanted = self.fixed.short
         counts = np.zeros(len(positions))
         aims = np.zeros((len(positions), 2))
         pts = problem.grid.target_points

@@ -1,6 +1,7 @@
 """The paper's fitness of a candidate sensor (Eq. 1-5), given the sensors fixed so far.
 
 Eq. 1, coverage:   f_ca = sum chi(i) over target points the candidate newly covers
+                        (with k-coverage: covers while they are below their k)
                         + zeta for each target point it covers that is covered already
                         + sum tau(j) over footprint cells outside the targets
 Eq. 2, decay:      tau(j) = exp(-d_pp(j)^2 / (2 theta_tau^2)),  d_pp = distance to the
@@ -59,34 +60,49 @@ CLOSENESS_CUTOFF = 6.0
 class FixedSensors:
     """What the fitness needs of the sensors fixed so far.
 
-    covered: (N,) bool over the grid's target points; positions: (z, 2) masts, local XY;
-    n_covered: how many of ``covered`` are set (counted once, then kept by ``mark``, so
-    that progress reports need not count N points after every evaluation).
+    covered: (N,) bool over the grid's target points, covered to their k (``need``,
+    (N,), default 1 each; ``counts``: sensors fixed that cover each point);
+    positions: (z, 2) masts, local XY; n_covered: how many of ``covered`` are set
+    (counted once, then kept by ``mark``, so that progress reports need not count N
+    points after every evaluation).
     """
 
     covered: NDArray[np.bool_]
     positions: list[tuple[float, float]] = field(default_factory=list)
+    need: NDArray[np.int32] | None = None
     n_covered: int = field(init=False)
+    counts: NDArray[np.int32] = field(init=False)
     _bucket_m: float = field(default=0.0, repr=False)
     _buckets: dict[tuple[int, int], list[int]] = field(default_factory=dict, repr=False)
     _around: dict[tuple[int, int], F64] = field(default_factory=dict, repr=False)
     _indexed: int = field(default=0, repr=False)
 
     def __post_init__(self) -> None:
+        if self.need is None:
+            self.need = np.ones(len(self.covered), dtype=np.int32)
+        self.counts = np.where(self.covered, self.need, 0).astype(np.int32)
         self.n_covered = int(np.count_nonzero(self.covered))
 
-    def add(self, cov: SensorCoverage) -> NDArray[np.int64]:
-        """Fix a sensor; returns the target ordinals it newly covers."""
-        newly = cov.covered[~self.covered[cov.covered]]
-        self.mark(newly, (cov.pose.x, cov.pose.y))
-        return newly
+    @property
+    def short(self) -> NDArray[np.bool_]:
+        """(N,) the points still below their k."""
+        assert self.need is not None
+        return self.counts < self.need
 
-    def mark(self, newly: NDArray[np.int64], position: tuple[float, float]) -> None:
-        """Fix a sensor at ``position`` (local XY) that newly covers target ordinals
-        ``newly`` (none of them covered before)."""
+    def add(self, cov: SensorCoverage) -> NDArray[np.int64]:
+        """Fix a sensor; returns the target ordinals it newly covers to their k."""
+        return self.mark(cov.covered, (cov.pose.x, cov.pose.y))
+
+    def mark(self, seen: NDArray[np.int64], position: tuple[float, float]) -> NDArray[np.int64]:
+        """Fix a sensor at ``position`` (local XY) that covers target ordinals ``seen``;
+        returns those it brings to their k."""
+        assert self.need is not None
+        newly = seen[self.counts[seen] == self.need[seen] - 1]
+        self.counts[seen] += 1
         self.covered[newly] = True
         self.positions.append(position)
         self.n_covered += len(newly)
+        return newly
 
     def near(self, x: float, y: float, radius: float) -> F64:
         """(k, 2) the fixed positions within ``radius`` of (x, y), in the order fixed.
@@ -141,8 +157,11 @@ class Fitness:
 def fitness(
     grid: GroundGrid, cov: SensorCoverage, fixed: FixedSensors, params: FitnessParams
 ) -> Fitness:
-    """Eq. 1-5 for candidate coverage ``cov`` (evaluated with the ``band_m`` band)."""
-    new = ~fixed.covered[cov.covered]
+    """Eq. 1-5 for candidate coverage ``cov`` (evaluated with the ``band_m`` band). A
+    covered point counts as new while it is below its k (k = 1: not covered yet);
+    ``new_points`` counts those."""
+    assert fixed.need is not None
+    new = fixed.counts[cov.covered] < fixed.need[cov.covered]
     f_cov = float(cov.chi[new].sum()) + params.zeta * float((~new).sum())
     d_pp = grid.dist_to_target(cov.outside)
     tau = np.exp(-(d_pp**2) / (2 * params.theta_tau_m**2))

@@ -1,7 +1,8 @@
 """Greedy set cover over the candidate set: beyond the paper, fewer sensors.
 
 While the goal is not met, the candidate (``core/candidates.py``) that covers the most
-still-uncovered target points is fixed, except that one standing on a mast already
+target points still below their k (multicover: with k = 1, the uncovered ones) is
+fixed, each candidate at most once, except that one standing on a mast already
 used wins if it adds at least 1 / (1 + MAST_PREFERENCE) of the best (fewer masts for a
 few per cent of one sensor's coverage). Greedy set cover needs at most about ln(N)
 times the optimum number of the same candidates (N target points). Deterministic:
@@ -16,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..problem import Problem
-from .base import Progress, Solution, StopReason, candidates_of, fix_candidate
+from .base import Progress, Solution, StopReason, candidates_of, fix_candidate, taken_candidates
 
 # A candidate on a mast already used wins against a new mast that adds up to this
 # fraction more (0: only on ties).
@@ -50,7 +51,10 @@ class Greedy:
             if (s.pose.x, s.pose.y) in index:
                 used[index[(s.pose.x, s.pose.y)]] = True
         by_point = cands.matrix.tocsc()  # which candidates cover a point: for the updates
-        gains = cands.matrix @ (~solution.covered).astype(np.float32)
+        gains = cands.matrix @ solution.short().astype(np.float32)
+        # A candidate is a pose: fixed once at most (with k > 1 it may still gain).
+        taken = taken_candidates(cands, solution)
+        gains[taken] = -1.0
         while not problem.reached(solution.n_covered):
             if len(solution.sensors) >= problem.max_sensors:
                 solution.stop_reason = StopReason.sensor_limit(problem.max_sensors)
@@ -60,8 +64,9 @@ class Greedy:
                 return solution
             pick = pick_candidate(gains, used[cands.position])
             sensor = fix_candidate(problem, solution, cands, pick)
-            # A point covered now adds nothing to any candidate any more.
+            # A point covered to its k now adds nothing to any candidate any more.
             gains -= np.asarray(by_point[:, sensor.newly].sum(axis=1)).ravel()
+            gains[pick] = -1.0
             used[cands.position[pick]] = True
             yield solution.progress("fixed", rho, fixed=sensor)
         solution.stop_reason = StopReason.reached(rho)

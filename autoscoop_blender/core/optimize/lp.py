@@ -35,10 +35,19 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import sparse
 
 from ..candidates import CandidateSet
 from ..problem import Problem
-from .base import PlanBound, Progress, Solution, StopReason, candidates_of, fix_candidate
+from .base import (
+    PlanBound,
+    Progress,
+    Solution,
+    StopReason,
+    candidates_of,
+    fix_candidate,
+    taken_candidates,
+)
 from .bound import (
     LPProgress,
     LPSolution,
@@ -70,17 +79,34 @@ MAX_MILP_CANDIDATES = 4000
 PART_POINTS = 20_000
 
 
-def instance(cands: CandidateSet, problem: Problem, covered: NDArray[np.bool_]) -> CoverInstance:
-    """The cover instance of what is left: the points not ``covered`` yet (columns of
-    the candidate matrix dropped) and the goal less what is covered. When no plan can
-    reach the goal (parts of the target no candidate sees), the goal is what all
-    candidates together cover: the most any plan can."""
+def instance(
+    cands: CandidateSet,
+    problem: Problem,
+    covered: NDArray[np.bool_],
+    counts: NDArray[np.int32] | None = None,
+    taken: I64 | None = None,
+) -> CoverInstance:
+    """The cover instance of what is left: the points not ``covered`` (to their k) yet
+    (columns of the candidate matrix dropped), each needing its k less the sensors
+    that cover it already (``counts``), and the goal less what is covered. When no
+    plan can reach the goal (parts of the target that fewer than their k candidates
+    see), the goal is what all candidates together cover: the most any plan can."""
     matrix = cands.matrix
+    if taken is not None and len(taken):  # a candidate counts once: not those fixed
+        keep = np.ones(matrix.shape[0])
+        keep[taken] = 0.0
+        matrix = (sparse.diags(keep.astype(matrix.dtype)) @ matrix).tocsr()
+        matrix.eliminate_zeros()
+    need = problem.need - (0 if counts is None else counts)
     if covered.any():
         matrix = matrix[:, np.flatnonzero(~covered)].tocsr()
-    coverable = int(np.count_nonzero(np.bincount(matrix.indices, minlength=matrix.shape[1])))
+        need = need[~covered]
+    seen_by = np.bincount(matrix.indices, minlength=matrix.shape[1])
+    coverable = int(np.count_nonzero(seen_by >= np.maximum(need, 1)))
     goal = min(problem.goal - int(np.count_nonzero(covered)), coverable)
-    return CoverInstance(matrix, goal, problem.grid.target_xy[~covered])
+    return CoverInstance(
+        matrix, goal, problem.grid.target_xy[~covered], need=np.maximum(need, 1).astype(np.int32)
+    )
 
 
 def bound_scope(cands: CandidateSet, problem: Problem) -> str:
@@ -317,14 +343,17 @@ def _lp_plans(inst: CoverInstance, lp: LPSolution) -> Iterator[list[int]]:
 
 
 def in_gain_order(inst: CoverInstance, chosen: list[int]) -> list[int]:
-    """The plan's candidates ordered as greedy would fix them: most new points first."""
+    """The plan's candidates ordered as greedy would fix them: the most points raised
+    towards their k first (k = 1: the most new points)."""
     left = list(chosen)
-    covered = np.zeros(inst.n_points, dtype=bool)
+    count = np.zeros(inst.n_points, dtype=np.int32)
     out = []
     while left:
-        gains = [int(np.count_nonzero(~covered[inst.covers(c)])) for c in left]
+        gains = [
+            int(np.count_nonzero(count[inst.covers(c)] < inst.k[inst.covers(c)])) for c in left
+        ]
         c = left.pop(int(np.argmax(gains)))
-        covered[inst.covers(c)] = True
+        count[inst.covers(c)] += 1
         out.append(c)
     return out
 
@@ -349,7 +378,9 @@ class LPPlanner:
         t0 = time.perf_counter()
         deadline = None if s.time_limit_s is None else t0 + s.time_limit_s
         cands = yield from candidates_of(problem, solution)
-        inst = instance(cands, problem, solution.covered)
+        inst = instance(
+            cands, problem, solution.covered, solution.counts, taken_candidates(cands, solution)
+        )
         if problem.reached(solution.n_covered) or inst.goal <= 0:
             solution.stop_reason = (
                 StopReason.reached(problem.rho)

@@ -30,12 +30,12 @@ from ..coverage.evaluator import Evaluator, make_evaluator
 from ..geom.grid import GroundGrid
 from ..geom.raycast import RayCaster
 from ..model.sensors import SensorModel, SensorPose
-from ..problem import WorkerInputs
+from ..problem import WorkerInputs, point_need
 from ..settings import FitnessParams
 from .fitness import FixedSensors, fitness
 
-# A fixed sensor as workers are told of it: the target ordinals it newly covered and
-# its mast position (local x, y).
+# A fixed sensor as workers are told of it: the target ordinals it covers and its mast
+# position (local x, y).
 FixedMark = tuple[NDArray[np.int64], tuple[float, float]]
 
 
@@ -73,7 +73,8 @@ def _start(inputs: WorkerInputs, make_caster: Callable[[], RayCaster]) -> None:
     caster = make_caster()
     grid = GroundGrid.from_arrays(inputs.grid, caster)
     evaluator = make_evaluator(inputs.settings, grid, caster, inputs.settings.cache)
-    fixed = FixedSensors(np.zeros(grid.n_targets, dtype=bool))
+    need = point_need(grid, inputs.settings.coverage_k)
+    fixed = FixedSensors(np.zeros(grid.n_targets, dtype=bool), need=need)
     _WORKER = _Worker(grid, evaluator, inputs.model, inputs.settings.fitness, fixed)
 
 
@@ -82,8 +83,8 @@ def _score(poses: Sequence[SensorPose], fixed_since: list[FixedMark]) -> tuple[l
     the sight rays cast."""
     w = _WORKER
     assert w is not None
-    for newly, position in fixed_since:
-        w.fixed.mark(newly, position)
+    for seen, position in fixed_since:
+        w.fixed.mark(seen, position)
     fits, rays = [], 0
     for pose in poses:
         cov = w.evaluator.evaluate(w.model, pose, outside_band_m=w.params.band_m)
