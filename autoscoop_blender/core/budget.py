@@ -105,6 +105,8 @@ POINTCLOUD_RAY_BYTES = 1000
 # CACHE_GEOMETRY_BYTES (``CachedTargetedEvaluator.max_bytes``), and 1 of ray answer,
 # kept for the whole run.
 CACHE_ROW_BYTES = 56
+# A camera with a resolution also keeps each row's facing factor (float64).
+CACHE_PIXEL_ROW_BYTES = 8
 CACHE_ANSWER_BYTES = 1
 CACHE_GEOMETRY_BYTES = 2 << 30
 # ``cover_many`` per (orientation, row) of one position: the rows in each sensor frame
@@ -459,8 +461,9 @@ def estimate_run(
     # Rows of the cached evaluator: targets within reach of each position
     # (reachability, candidates) and, for the ES, targets and the band beside them.
     cache_rows = int(positions * (fp.reach_m2 + fp.band_m2) / g**2)
+    row_bytes = CACHE_ROW_BYTES + (CACHE_PIXEL_ROW_BYTES if model.resolution_px else 0)
     cache = (
-        min(cache_rows * CACHE_ROW_BYTES, CACHE_GEOMETRY_BYTES) + cache_rows * CACHE_ANSWER_BYTES
+        min(cache_rows * row_bytes, CACHE_GEOMETRY_BYTES) + cache_rows * CACHE_ANSWER_BYTES
     )
     stages["cache"] = resident + cache
     uses_candidates = settings.optimizer in CANDIDATE_OPTIMIZERS or settings.bound

@@ -228,3 +228,14 @@ def test_machine_figures():
     assert budget.resident_bytes() >= 0
     assert budget.count_text(46.6e9) == "46.6 G" and budget.count_text(512) == "512"
     assert budget.bytes_text(43 * GIB) == "43.0 GiB" and budget.bytes_text(310 << 20) == "310 MiB"
+
+
+def test_a_camera_with_a_resolution_keeps_8_more_bytes_a_cached_row():
+    from autoscoop_blender.core.model.sensors import CCTV_CAMERA
+
+    settings = OptimizeSettings(optimizer="es", grid_m=0.5)
+    plain = replace(CCTV_CAMERA, resolution_px=None, min_px_per_m=0.0)
+    a = run_estimate(hand_scene(), CCTV_CAMERA, settings)
+    b = run_estimate(hand_scene(), plain, settings)
+    assert a.cache_rows == b.cache_rows > 0
+    assert a.stage_bytes("cache") - b.stage_bytes("cache") == 8 * a.cache_rows
