@@ -532,10 +532,12 @@ def site_cover(
     if not milp:
         return SiteSolution(max(lp_bound, 0), np.zeros(0, dtype=np.int64), lp_sites)
     h = model()
+    # With k > 1 a point's u must be whole too: one of its k would count it half.
+    first = 0 if need is not None else n
     h.changeColsIntegrality(
-        n_sites,
-        np.arange(n, n + n_sites, dtype=np.int32),
-        np.array([highspy.HighsVarType.kInteger] * n_sites),
+        n + n_sites - first,
+        np.arange(first, n + n_sites, dtype=np.int32),
+        np.array([highspy.HighsVarType.kInteger] * (n + n_sites - first)),
     )
     yield from _run(h, stop)
     info = h.getInfo()
@@ -588,7 +590,8 @@ def sensors_on_sites(
     value = np.tile([1.0, -1.0], n_cols)
     h.addRows(n_cols, np.full(n_cols, -highspy.kHighsInf), np.zeros(n_cols), 2 * n_cols,
               (2 * np.arange(n_cols)).astype(np.int32), index, value)  # fmt: skip
-    binary = np.arange(n, n + n_cols + n_sites, dtype=np.int32)
+    # With k > 1 a point's u must be whole too: one of its k would count it half.
+    binary = np.arange(0 if inst.multi else n, n + n_cols + n_sites, dtype=np.int32)
     h.changeColsIntegrality(
         len(binary), binary, np.array([highspy.HighsVarType.kInteger] * len(binary))
     )
