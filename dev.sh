@@ -6,6 +6,17 @@
 #                   packaging tests on bpy 5.2.3 / Python 3.13 in .venv-py313 (skipped, with
 #                   a message, when no Python 3.13 is found; PYTHON313= names one).
 #                   Extra arguments go to the first pytest run, and then it alone runs.
+#   ./dev.sh coverage [PYTEST ARGS]
+#                   the first pytest run (all tests, or PYTEST ARGS) with branch coverage of
+#                   autoscoop_blender/core and autoscoop_blender/io: a table per file, then
+#                   the total ("TOTAL ... %"); settings in pyproject.toml [tool.coverage].
+#   ./dev.sh mutants [-j N] [--rev REV] [FILE...]
+#                   mutation testing (mutmut) of the named core modules (default: every
+#                   module mapped in headless/devtools/mutants.py, long) with the tests
+#                   mapped to each; ends with "killed K of M" per module and in total and
+#                   the surviving mutants' changed lines. Mutants go to .mutants/ (git-
+#                   ignored), never into the sources. -j: mutants run at once (default 1).
+#   Neither coverage nor mutants is part of ./dev.sh test.
 set -euo pipefail
 cd "$(dirname "$0")"
 
@@ -80,8 +91,18 @@ case "${1:-}" in
         fi
         [ "$first" -eq 0 ] && [ "$second" -eq 0 ]
         ;;
+    coverage)
+        setup .venv "$PY" requirements.txt
+        shift
+        run_pytest .venv --cov --cov-branch --cov-report=term "$@"
+        ;;
+    mutants)
+        setup .venv "$PY" requirements.txt
+        shift
+        exec .venv/bin/python -m headless.devtools.mutants "$@"
+        ;;
     *)
-        echo "usage: ./dev.sh demo|test [extra arguments]" >&2
+        echo "usage: ./dev.sh demo|test|coverage|mutants [extra arguments]" >&2
         exit 2
         ;;
 esac
