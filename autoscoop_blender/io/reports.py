@@ -67,8 +67,6 @@ def result_dict(result: Result, extra_versions: dict[str, str] | None = None) ->
         "settings": settings.to_dict(),
         "model": result.model.to_dict(),
         "versions": {**versions(), **(extra_versions or {})},
-        "coverage_k": _k_in_effect(result),
-        "coverage_by_k": result.metrics.get("coverage_by_k"),
         "metrics": result.metrics,
         "stop_reason": result.stop_reason,
         "uncovered": list(result.uncovered),
