@@ -165,6 +165,12 @@ def assert_valid_model(model: SensorModel) -> None:
         v = getattr(model, f.name)
         if f.name in ("kind", "pattern"):
             assert isinstance(v, str)
+        elif f.name == "resolution_px":  # None, or whole pixels on a pinhole camera
+            assert v is None or (
+                model.pattern == "pinhole"
+                and len(v) == 2
+                and all(type(n) is int and n >= 1 for n in v)
+            ), v
         else:
             assert type(v) is (int if f.name in ("rays_h", "rays_v") else float), (f.name, v)
             assert math.isfinite(v), (f.name, v)
