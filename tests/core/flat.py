@@ -69,3 +69,35 @@ def box_caster(boxes=(), ground_z=0.0):
     """A caster factory (picklable, for runs with worker processes): axis-aligned
     boxes [(lo, hi)] on a ground plane at ``ground_z``."""
     return partial(BoxCaster, list(boxes), ground_z=ground_z)
+
+
+def open_scene(target, sensors):
+    """A SceneModel with no occluder: one target geometry, sensor-area geometries."""
+    return SceneModel(
+        vertices=np.zeros((0, 3)),
+        faces=np.zeros((0, 3), dtype=np.int32),
+        occluders=(),
+        targets=(Area("Target", target),),
+        sensor_areas=tuple(Area(f"SensorArea_{k}", g) for k, g in enumerate(sensors)),
+    )
+
+
+def down_camera(range_m):
+    """A pinhole camera looking straight down, 60 x 60 deg, no density threshold: on
+    flat ground its footprint is the axis-aligned square 2 h tan(30 deg) on a side
+    under it (mount height 10 m)."""
+    from dataclasses import replace
+
+    from autoscoop_blender.core.model.sensors import PAPER_CAMERA
+
+    return replace(
+        PAPER_CAMERA,
+        pattern="pinhole",
+        h_fov_deg=60.0,
+        v_fov_deg=60.0,
+        range_m=range_m,
+        mount_height_m=10.0,
+        pitch_min_deg=90.0,
+        pitch_max_deg=90.0,
+        min_density_per_m2=0.0,
+    )

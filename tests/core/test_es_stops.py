@@ -6,25 +6,14 @@ import numpy as np
 import pytest
 import shapely
 
-from autoscoop_blender.core.model.scene import Area, SceneModel
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA
 from autoscoop_blender.core.optimize.es import EvolutionStrategy
 from autoscoop_blender.core.problem import Problem
 from autoscoop_blender.core.run import Run
 from autoscoop_blender.core.settings import ESParams, OptimizeSettings
-from tests.core.flat import box_caster
+from tests.core.flat import box_caster, open_scene
 
 FEW = OptimizeSettings(optimizer="es", rho=0.9, es=ESParams(mu=4, lam=2, max_epochs=2))
-
-
-def _scene(target, sensor):
-    return SceneModel(
-        vertices=np.zeros((0, 3)),
-        faces=np.zeros((0, 3), dtype=np.int32),
-        occluders=(),
-        targets=(Area("Target", target),),
-        sensor_areas=(Area("SensorArea", sensor),),
-    )
 
 
 def test_a_search_that_finds_nothing_restarts_where_the_gap_can_be_seen():
@@ -32,7 +21,7 @@ def test_a_search_that_finds_nothing_restarts_where_the_gap_can_be_seen():
     first random parents (4 of ~1000 positions) almost surely see nothing; the restart
     aims them at positions that can see the target, and the goal is met from there."""
     target = shapely.box(1980, 5, 1990, 15)
-    scene = _scene(target, shapely.box(0, -1, 2000, 1))
+    scene = open_scene(target, [shapely.box(0, -1, 2000, 1)])
     res = Run(scene, box_caster(), PAPER_CAMERA, FEW).result()
     assert res.metrics["coverage_fraction"] >= 0.9
     assert res.stop_reason.startswith("Reached the goal")
@@ -45,7 +34,7 @@ def test_patience_is_the_number_of_fruitless_searches_in_a_row(monkeypatch, pati
     """A target beyond every camera's range that the reachability probe is made to call
     visible: each search and its restart find nothing, and the run gives up after
     exactly ``patience`` of them, saying so."""
-    scene = _scene(shapely.box(500, 0, 510, 10), shapely.box(0, -1, 10, 1))
+    scene = open_scene(shapely.box(500, 0, 510, 10), [shapely.box(0, -1, 10, 1)])
     settings = replace(FEW, patience=patience)
     problem_cls_reachable = Problem.reachable
 

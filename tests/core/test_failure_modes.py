@@ -14,11 +14,11 @@ from autoscoop_blender.core.coverage.targeted import TargetedEvaluator
 from autoscoop_blender.core.errors import InputError
 from autoscoop_blender.core.geom.alpha import alpha_mask, alpha_shape, triangulate
 from autoscoop_blender.core.geom.raycast import BoxCaster, inside_solid
-from autoscoop_blender.core.model.scene import Area, SceneModel
+from autoscoop_blender.core.model.scene import Area
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA, ROADSIDE_LIDAR, SensorPose
 from autoscoop_blender.core.run import Run
 from autoscoop_blender.core.settings import ESParams, OptimizeSettings
-from tests.core.flat import box_caster, flat_grid
+from tests.core.flat import box_caster, flat_grid, open_scene
 
 # --- alpha shape ---------------------------------------------------------------------
 
@@ -170,18 +170,8 @@ def test_auto_oversample_follows_spacing_range_and_grid():
 FAST = OptimizeSettings(optimizer="es", rho=0.9, es=ESParams(mu=6, lam=3, max_epochs=3))
 
 
-def _scene(target, sensors):
-    return SceneModel(
-        vertices=np.zeros((0, 3)),
-        faces=np.zeros((0, 3), dtype=np.int32),
-        occluders=(),
-        targets=(Area("Target", target),),
-        sensor_areas=tuple(Area(f"SensorArea_{k}", g) for k, g in enumerate(sensors)),
-    )
-
-
 def test_a_sensor_area_too_small_to_move_in():
-    scene = _scene(shapely.box(0, -5, 40, 5), [shapely.box(-3.2, 6.1, -3.0, 6.3)])
+    scene = open_scene(shapely.box(0, -5, 40, 5), [shapely.box(-3.2, 6.1, -3.0, 6.3)])
     run = Run(scene, box_caster(), PAPER_CAMERA, replace(FAST, rho=0.5))
     positions = run.problem.space.positions
     assert len(positions) == 1
@@ -199,7 +189,7 @@ def test_a_target_that_needs_hundreds_of_sensors():
     # A short-sighted camera: about 20 m of road per sensor.
     model = replace(PAPER_CAMERA, range_m=15.0, mount_height_m=3.0, min_density_per_m2=0.0)
     settings = replace(FAST, rho=0.97, grid_m=1.0, es=ESParams(mu=6, lam=3, max_epochs=3))
-    res = Run(_scene(road, [verge]), box_caster(), model, settings).result()
+    res = Run(open_scene(road, [verge]), box_caster(), model, settings).result()
     assert res.metrics["coverage_fraction"] >= 0.97
     # Below: no sensor sees more than a disk of its horizontal reach, sqrt(15^2 - 3^2)
     # = 14.7 m, so at most 29.4 m of the 4 m road: 97 % of 3000 m needs >= 100 of them.
@@ -216,7 +206,7 @@ def test_contradictory_pitch_limits_are_an_error():
 
 
 def test_one_seed_against_another():
-    scene = _scene(shapely.box(0, -7, 100, 7), [shapely.box(0, 10, 100, 14)])
+    scene = open_scene(shapely.box(0, -7, 100, 7), [shapely.box(0, 10, 100, 14)])
     results = [
         Run(scene, box_caster(), PAPER_CAMERA, replace(FAST, seed=s)).result() for s in (0, 1, 2)
     ]
@@ -234,7 +224,7 @@ def test_huge_coordinates_give_the_same_coverage():
     area = shapely.box(-12, -4, -4, 4)
     results = []
     for shift in (0.0, 500_000.0):
-        scene = _scene(
+        scene = open_scene(
             shapely.affinity.translate(base, shift, shift),
             [shapely.affinity.translate(area, shift, shift)],
         )
@@ -269,7 +259,7 @@ def test_a_target_smaller_than_one_grid_cell_is_a_clear_error():
     from autoscoop_blender.core.errors import SceneContractError
     from autoscoop_blender.core.geom.grid import GroundGrid
 
-    scene = _scene(shapely.box(0.1, 0.1, 0.4, 0.4), [shapely.box(-5, 0, -1, 4)])
+    scene = open_scene(shapely.box(0.1, 0.1, 0.4, 0.4), [shapely.box(-5, 0, -1, 4)])
     with pytest.raises(SceneContractError, match="holds no point of the 1 m grid"):
         GroundGrid(scene, BoxCaster(ground_z=0.0), 1.0)
     fine = GroundGrid(scene, BoxCaster(ground_z=0.0), 0.1)

@@ -22,22 +22,10 @@ from autoscoop_blender.core.optimize.cover import Cover, CoverInstance, complete
 from autoscoop_blender.core.run import Run
 from autoscoop_blender.core.settings import CoverageSettings, OptimizeSettings
 from autoscoop_blender.io.reports import coverage_dict
-from tests.core.flat import box_caster, flat_scene
+from tests.core.flat import box_caster, down_camera, flat_scene
 from tests.core.test_lp import drain, instance
 
-# A pinhole camera looking straight down, no density threshold: on flat ground its
-# footprint is the axis-aligned square of side 2 h tan(30 deg) under it.
-DOWN = replace(
-    PAPER_CAMERA,
-    pattern="pinhole",
-    h_fov_deg=60.0,
-    v_fov_deg=60.0,
-    range_m=30.0,
-    mount_height_m=10.0,
-    pitch_min_deg=90.0,
-    pitch_max_deg=90.0,
-    min_density_per_m2=0.0,
-)
+DOWN = down_camera(30.0)  # its footprint: the square 2 h tan(30 deg) under it
 
 
 def height_for(side):

@@ -1,30 +1,17 @@
 """The paper's layout metrics on a case worked out by hand."""
 
 import math
-from dataclasses import replace
 
 import pytest
 
 from autoscoop_blender.core.evaluate import evaluate_layout
 from autoscoop_blender.core.geom.raycast import BoxCaster
-from autoscoop_blender.core.model.sensors import PAPER_CAMERA, SensorSpec
+from autoscoop_blender.core.model.sensors import SensorSpec
 from autoscoop_blender.core.settings import CoverageSettings
-from tests.core.flat import flat_scene
+from tests.core.flat import down_camera, flat_scene
 
-# A pinhole camera looking straight down, no density threshold: on flat ground its
-# footprint is the square 2 h tan(30 deg) on a side (its corners 12.9 m away at
-# h = 10, inside the 20 m range).
-DOWN = replace(
-    PAPER_CAMERA,
-    pattern="pinhole",
-    h_fov_deg=60.0,
-    v_fov_deg=60.0,
-    range_m=20.0,
-    mount_height_m=10.0,
-    pitch_min_deg=90.0,
-    pitch_max_deg=90.0,
-    min_density_per_m2=0.0,
-)
+# Its corners 12.9 m away at h = 10, inside the 20 m range.
+DOWN = down_camera(20.0)
 
 
 def side(h):
