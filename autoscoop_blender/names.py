@@ -23,6 +23,7 @@ ROLE_SENSOR = "sensor"  # a camera: a sensor to evaluate
 ROLE_NONE = "none"  # unmarked: not an area even if the name says so
 IGNORE_PROP = "autoscoop_ignore"  # True: the mesh does not occlude
 OVERHANG_PROP = "autoscoop_overhang"  # True: occludes, but nothing stands on it
+MOUNT_PROP = "autoscoop_mount"  # True: masts may stand on its top (roof, gantry, deck)
 HEIGHT_PROP = "height_m"  # on a sensor area: mast height there, metres
 # On a target area: what its points require (issue 16's planners' requirements).
 COVERAGE_K_PROP = "coverage_k"  # int >= 1: sensors that must see each point

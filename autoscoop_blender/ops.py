@@ -175,7 +175,8 @@ class AUTOSCOOP_OT_mark(bpy.types.Operator):
 
 
 class AUTOSCOOP_OT_check(bpy.types.Operator):
-    """Check the scene: areas, curves, and line of sight from every sensor area"""
+    """Check the scene: areas, curves, line of sight from every sensor area, and where
+    no mast may stand"""
 
     bl_idname = names.OP_CHECK
     bl_label = "Check Scene"
@@ -185,13 +186,18 @@ class AUTOSCOOP_OT_check(bpy.types.Operator):
             job = pipeline.OptimizeJob(context)
         except AutoscoopError as e:
             context.scene.autoscoop.check_text = str(e)
+            context.scene.autoscoop.check_notes = ""
             return _fail(self, e)
         lines = [f"{a}: no line of sight to any target point" for a in job.run.blind_areas()]
         lines += list(job.scene_model.warnings)
+        notes = [e.text() for e in job.scene_model.excluded]
         job.cancel()
         context.scene.autoscoop.check_text = "\n".join(lines) or "OK"
+        context.scene.autoscoop.check_notes = "\n".join(notes)
         for line in lines:
             self.report({"WARNING"}, line)
+        for line in notes:
+            self.report({"INFO"}, line)
         if not lines:
             self.report({"INFO"}, "Scene OK")
         return {"FINISHED"}

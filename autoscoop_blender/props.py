@@ -126,6 +126,8 @@ class AUTOSCOOP_PG_settings(bpy.types.PropertyGroup):
     )
     flat_footprint: StringProperty(name="Flat footprint", default="")  # type: ignore[valid-type]
     check_text: StringProperty(name="Scene check", default="")  # type: ignore[valid-type]
+    # The check's notes: where the sensor areas offer no mast site, and why.
+    check_notes: StringProperty(name="Scene notes", default="")  # type: ignore[valid-type]
 
     # --- optimizer: the knobs of PANEL_SETTINGS, added below -------------------------
     show_es: BoolProperty(name="Evolution strategy", default=False)  # type: ignore[valid-type]

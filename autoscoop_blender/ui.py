@@ -65,6 +65,8 @@ class AUTOSCOOP_PT_scene(_Panel, bpy.types.Panel):
             row = layout.row()
             row.alert = line != "OK"
             row.label(text=line, icon="ERROR" if row.alert else "CHECKMARK")
+        for line in context.scene.autoscoop.check_notes.splitlines():
+            layout.label(text=line, icon="INFO")
 
 
 class AUTOSCOOP_PT_sensor(_Panel, bpy.types.Panel):

@@ -44,6 +44,8 @@ def coverage(args: argparse.Namespace) -> int:
     result = evaluate_layout(scene, make_caster(), specs, settings)
     for w in result.warnings:
         print(f"warning: {w}", file=sys.stderr)
+    for e in result.excluded:
+        print(f"note: {e.text()}", file=sys.stderr)
 
     outputs: dict[Path, str | bytes] = {Path(args.out): json_text(coverage_dict(result))}
     if args.points_csv:
@@ -86,6 +88,8 @@ def optimize(args: argparse.Namespace) -> int:
     scene, make_caster = load_scene(args.scene or default_scene(), model.range_m)
     for w in scene.warnings:
         print(f"warning: {w}", file=sys.stderr)
+    for e in scene.excluded:
+        print(f"note: {e.text()}", file=sys.stderr)
     with OutDirLock(out_dir) as lock:
         if lock.stale_pid is not None:
             print(

@@ -21,7 +21,9 @@ from .coverage.pointcloud import auto_oversample
 from .geom.grid import GroundGrid
 from .geom.raycast import RayCaster, inside_solid
 from .masts import group_positions
+from ..names import MOUNT_PROP
 from .model.scene import SceneModel
+from .model.sites import site_blockers
 from .model.sensors import SensorModel, SensorSpec
 from .result import Provenance, Result, area_at, finish_layout
 from .settings import CoverageSettings
@@ -43,8 +45,8 @@ def evaluate_layout(
     """Coverage of each sensor and of their union, with footprints and visibility.
 
     specs: world metres (see ``SensorSpec`` for how each height is found). Warnings
-    (in ``Result.warnings``): a sensor outside every sensor area, inside an occluder,
-    or mounted at or above its range.
+    (in ``Result.warnings``): a sensor where no mast may stand (``sites``), outside
+    every sensor area, inside an occluder, or mounted at or above its range.
     """
     settings = settings.validated()
     t0 = time.perf_counter()
@@ -67,11 +69,19 @@ def evaluate_layout(
             "pointcloud: the point cloud lies on surfaces; --target-height applies to targeted only"
         )
 
+    local_xy = scene.to_local(np.array([[s.x, s.y] for s in specs], dtype=float))
+    blockers = site_blockers(scene, local_xy)
     coverages = []
     for k, spec in enumerate(specs, start=1):
-        x, y = (float(v) for v in scene.to_local(np.array([spec.x, spec.y])))
+        x, y = (float(v) for v in local_xy[k - 1])
         area = area_at(scene, x, y)
-        if area is None:
+        if blockers[k - 1] is not None:
+            warnings.append(
+                f"sensor {k} at ({spec.x:g}, {spec.y:g}) stands where no mast may: on or "
+                f"beside {blockers[k - 1]} (masts stand on the ground; a roof or gantry "
+                f"with {MOUNT_PROP} = True may carry one)"
+            )
+        elif area is None:
             warnings.append(
                 f"sensor {k} at ({spec.x:g}, {spec.y:g}) stands outside every sensor area"
             )

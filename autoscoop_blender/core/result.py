@@ -29,7 +29,7 @@ from .coverage.reference import reference_footprint_m2
 from .geom.drape import drape
 from .geom.grid import GroundGrid
 from .geom.outline import occluder_outline
-from .model.scene import Area, SceneModel
+from .model.scene import Area, Exclusion, SceneModel
 from .model.sensors import SensorModel
 from .optimize.base import PlanBound
 from .problem import point_need
@@ -100,7 +100,8 @@ class Result:
     crs, crs_offset: the scene's georeference (``SceneModel.crs``; None: none), which
     the GIS outputs (``io.georef``) apply to these world coordinates. need: (N,)
     sensors each point needs to count as covered (its k; None: 1); area_k: the target
-    areas that set their own ``coverage_k``, (name, k).
+    areas that set their own ``coverage_k``, (name, k). excluded: the parts of the
+    sensor areas where no mast may stand, and why (``SceneModel.excluded``).
     """
 
     sensors: tuple[SensorRecord, ...]
@@ -127,6 +128,7 @@ class Result:
     crs_offset: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
     need: I32 | None = None
     area_k: tuple[tuple[str, int], ...] = ()
+    excluded: tuple[Exclusion, ...] = ()
 
     @property
     def k_need(self) -> I32:
@@ -285,6 +287,7 @@ def finish_layout(
         crs_offset=scene.crs_offset,
         need=need,
         area_k=tuple((a.name, int(a.coverage_k)) for a in scene.targets if a.coverage_k),
+        excluded=scene.excluded,
     )
 
 

@@ -70,6 +70,7 @@ def result_dict(result: Result, extra_versions: dict[str, str] | None = None) ->
         "metrics": result.metrics,
         "stop_reason": result.stop_reason,
         "uncovered": list(result.uncovered),
+        "no_mast_sites": excluded_list(result),
         "sensors": [
             {
                 "n": s.n,
@@ -140,7 +141,13 @@ def coverage_dict(result: Result) -> dict[str, Any]:
         "wall_s": m["wall_s"],
         "origin": [float(v) for v in result.origin],
         "warnings": list(result.warnings),
+        "no_mast_sites": excluded_list(result),
     }
+
+
+def excluded_list(result: Result) -> list[dict[str, Any]]:
+    """Where the sensor areas offer no mast site, and why: area, cause, m^2."""
+    return [{"area": e.area, "cause": e.cause, "m2": round(e.m2, 2)} for e in result.excluded]
 
 
 def _k_in_effect(result: Result) -> dict[str, Any]:

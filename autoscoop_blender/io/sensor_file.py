@@ -30,7 +30,7 @@ SENSOR_KEYS = ("x", "y", "height_m", "pitch_deg", "yaw_deg", "model")
 # ``sensors`` it carries these keys, and these in each sensor, which are not read.
 RESULT_TOP_KEYS = (
     "schema", "scene", "optimizer", "method", "seed", "settings", "versions", "metrics",
-    "stop_reason", "uncovered", "masts", "origin",
+    "stop_reason", "uncovered", "no_mast_sites", "masts", "origin",
 )  # fmt: skip
 RESULT_SENSOR_KEYS = (
     "n", "z", "mast", "fitness", "epochs", "target_covered_m2", "footprint_m2",

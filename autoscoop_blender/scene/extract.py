@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import bpy
@@ -24,7 +24,8 @@ from numpy.typing import NDArray
 
 from .. import names
 from ..core.errors import SceneContractError
-from ..core.model.scene import Area, SceneModel, area_from_rings, choose_origin, polygonal_part
+from ..core.model.scene import Area, SceneModel, area_from_rings, choose_origin
+from ..core.model.sites import mast_sites
 from ..core.model.sensors import DORI_PX_PER_M, KINDS, MAX_COORD_M, MAX_RANGE_M
 from ..io.georef import check_crs, check_offset
 
@@ -128,34 +129,38 @@ def extract_scene(
     targets = tuple(_target_area(obj, rings, origin) for obj, rings in target_rings)
     sensors = tuple(_area(obj, rings, origin, with_height=True) for obj, rings in sensor_rings)
     no_mast = tuple(_area(obj, rings, origin) for obj, rings in no_mast_rings)
-    sensors = _without_no_mast(sensors, no_mast, source)
 
-    vertices, faces, occluders, ground = occluder_mesh(depsgraph, results)
-    vertices = vertices - origin
+    occ = occluder_mesh(depsgraph, results)
+    vertices, faces = occ.vertices - origin, occ.faces
     # Tilted areas last: whether a ring follows the terrain depends on the occluders.
     surface = _Surface(lambda: (vertices, faces))
     for obj, rings in target_rings + sensor_rings + no_mast_rings:
         check_flat_rings(obj, rings, surface, origin)
     warnings: list[str] = []
-    if not occluders:
+    if not occ.names:
         warnings.append(
             f"{source}: no occluder in the scene - flat nothing: targets lie on a "
             "plane at the curves' height and nothing blocks the view"
         )
-    return SceneModel(
+    scene_model = SceneModel(
         vertices=vertices,
         faces=faces,
-        occluders=tuple(occluders),
+        occluders=tuple(occ.names),
         targets=targets,
         sensor_areas=sensors,
         origin=origin,
         source=source,
         warnings=tuple(warnings),
-        ground_faces=None if ground.all() else ground,
+        ground_faces=None if occ.ground.all() else occ.ground,
         crs=crs,
         crs_offset=crs_offset,
         no_mast=no_mast,
+        face_object=occ.owner,
+        mounts=tuple(occ.mounts),
     )
+    # Where masts may stand: the sensor areas less no-mast zones and what stands on
+    # the ground (walls, roofs, tree crowns), one rule for every optimizer.
+    return mast_sites(scene_model)
 
 
 def scene_georef(scene: bpy.types.Scene) -> tuple[str | None, tuple[float, float, float, float]]:
@@ -179,27 +184,6 @@ _ROLE_WORDS = {
     names.ROLE_SENSOR_AREA: "sensor area",
     names.ROLE_NO_MAST: "no-mast zone",
 }
-
-
-def _without_no_mast(
-    sensors: tuple[Area, ...], no_mast: tuple[Area, ...], source: str
-) -> tuple[Area, ...]:
-    """The sensor areas less the no-mast zones; an area wholly inside them is left out.
-    SceneContractError when none is left."""
-    if not no_mast:
-        return sensors
-    holes = shapely.union_all([z.geometry for z in no_mast])
-    kept = []
-    for area in sensors:
-        rest = polygonal_part(area.geometry.difference(holes))
-        if rest.area > 1e-6:
-            kept.append(replace(area, geometry=rest))
-    if not kept:
-        zones = ", ".join(z.name for z in no_mast)
-        raise SceneContractError(
-            f"{source}: every sensor area lies inside the no-mast zones ({zones})"
-        )
-    return tuple(kept)
 
 
 def _target_area(obj: bpy.types.Object, rings: list[F64], origin: F64) -> Area:
@@ -344,8 +328,8 @@ def occluder_surface() -> _Surface:
 
     def mesh() -> tuple[F64, NDArray[np.int32]]:
         depsgraph = bpy.context.evaluated_depsgraph_get()
-        vertices, faces, _, _ = occluder_mesh(depsgraph, results_collections())
-        return vertices, faces
+        occ = occluder_mesh(depsgraph, results_collections())
+        return occ.vertices, occ.faces
 
     return _Surface(mesh)
 
@@ -422,15 +406,28 @@ def _bezier_points(spline: bpy.types.Spline) -> F64:
     return np.concatenate(out)
 
 
-def occluder_mesh(
-    depsgraph: bpy.types.Depsgraph, results: set[str]
-) -> tuple[F64, NDArray[np.int32], list[str], NDArray[np.bool_]]:
-    """All occluding triangles in world metres: vertices (V, 3), faces (F, 3), names,
-    and (F,) False for faces of overhangs (``names.OVERHANG_PROP``)."""
+@dataclass(frozen=True)
+class Occluders:
+    """All occluding triangles in world metres: vertices (V, 3), faces (F, 3); the
+    objects' names, (F,) each face's index into them, (F,) False for faces of
+    overhangs (``names.OVERHANG_PROP``), and the names of mounts (``names.MOUNT_PROP``)."""
+
+    vertices: F64
+    faces: NDArray[np.int32]
+    names: list[str]
+    owner: NDArray[np.int32]
+    ground: NDArray[np.bool_]
+    mounts: list[str]
+
+
+def occluder_mesh(depsgraph: bpy.types.Depsgraph, results: set[str]) -> Occluders:
+    """The scene's occluders (see ``Occluders``)."""
     verts: list[F64] = []
     faces: list[NDArray[np.int32]] = []
     ground: list[NDArray[np.bool_]] = []
+    owner: list[NDArray[np.int32]] = []
     used: list[str] = []
+    mounts: list[str] = []
     offset = 0
     for inst in depsgraph.object_instances:
         obj = inst.instance_object if inst.is_instance else inst.object
@@ -452,13 +449,21 @@ def occluder_mesh(
         offset += len(v)
         if orig.name not in used:
             used.append(orig.name)
+            if orig.get(names.MOUNT_PROP, False):
+                mounts.append(orig.name)
+        owner.append(np.full(len(f), used.index(orig.name), dtype=np.int32))
     if not faces:
-        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int32), [], np.ones(0, dtype=bool)
-    return (
+        none = np.zeros(0, dtype=np.int32)
+        return Occluders(
+            np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int32), [], none, none.astype(bool), []
+        )
+    return Occluders(
         np.concatenate(verts),
         np.concatenate(faces).astype(np.int32),
         used,
+        np.concatenate(owner),
         np.concatenate(ground),
+        mounts,
     )
 
 

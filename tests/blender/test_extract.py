@@ -304,6 +304,11 @@ def test_a_no_mast_zone_cuts_a_hole_in_the_sensor_areas():
     assert long.area == pytest.approx(200.0 - 50.0)
     assert not long.contains(shapely.Point(7.5, 5.0)) and long.contains(shapely.Point(2, 5))
     assert sorted(z.name for z in scene.no_mast) == ["NoMast_Pipeline", "No_Mast_Yard"]
+    # What each zone took, for the panel and the reports: 5 m x 10 m, and 4 m x 4 m.
+    assert [(e.area, e.cause, e.m2) for e in scene.excluded] == [
+        ("SensorArea_Long", "NoMast_Pipeline", pytest.approx(50.0)),
+        ("SensorArea_Gone", "No_Mast_Yard", pytest.approx(16.0)),
+    ]
     # The zones are not occluders, nor targets.
     assert not {"NoMast_Pipeline", "No_Mast_Yard"} & set(scene.occluders)
     # Every mast position of a run stands outside the zones (on their edge at most:
@@ -324,7 +329,10 @@ def test_no_sensor_area_left_outside_the_zones():
         b.curve("SensorArea", [b.rect(0, 0, 4, 4)])
         b.curve("NoMast", [b.rect(-1, -1, 5, 5)])
 
-    assert _err(build).endswith("every sensor area lies inside the no-mast zones (NoMast)")
+    assert _err(build).endswith(
+        "no sensor area has room for a mast: no-mast zones or objects standing on the "
+        "ground cover them all (NoMast)"
+    )
 
 
 def test_target_requirements_are_read_and_checked():

@@ -55,6 +55,23 @@ class Area:
 
 
 @dataclass(frozen=True)
+class Exclusion:
+    """Part of a sensor area where no mast may stand.
+
+    area: the sensor area's name; cause: the no-mast curve's or the standing
+    object's name; m2: how much of the area it takes (causes may overlap, so the
+    parts of one area can add up to more than the area lost).
+    """
+
+    area: str
+    cause: str
+    m2: float
+
+    def text(self) -> str:
+        return f"{self.area}: {self.m2:,.1f} m^2 no mast site ({self.cause})"
+
+
+@dataclass(frozen=True)
 class SceneModel:
     """What the core needs of a scene (local metres).
 
@@ -80,6 +97,13 @@ class SceneModel:
     # Where masts may not stand (``names.NO_MAST_RE`` curves): already cut out of
     # ``sensor_areas``, kept to be shown and reported.
     no_mast: tuple[Area, ...] = ()
+    # (F,) index into ``occluders`` of each face's object, and the objects masts may
+    # stand on (``names.MOUNT_PROP``); face_object None: objects unknown, nothing is
+    # judged to stand on the ground (``sites``).
+    face_object: NDArray[np.int32] | None = None
+    mounts: tuple[str, ...] = ()
+    # What ``sites.mast_sites`` cut out of the sensor areas, and why.
+    excluded: tuple[Exclusion, ...] = ()
 
     def cropped(self, reach_m: float) -> SceneModel:
         """The scene without occluders that no sight line can meet: faces whose nearest
@@ -112,7 +136,8 @@ class SceneModel:
         if keep.all():
             return self
         ground = None if self.ground_faces is None else self.ground_faces[keep]
-        return replace(self, faces=self.faces[keep], ground_faces=ground)
+        owner = None if self.face_object is None else self.face_object[keep]
+        return replace(self, faces=self.faces[keep], ground_faces=ground, face_object=owner)
 
     @property
     def target_union(self) -> BaseGeometry:
