@@ -45,15 +45,17 @@ def choose_sites(
     n_points: int,
     keep_at_least: int,
     need: NDArray[np.int32] | None = None,
+    fixed: NDArray[np.bool_] | None = None,
 ) -> tuple[F64, NDArray[np.int_]]:
     """Mast sites for grouped sensors.
 
     xy: (n, 2) sensor positions; labels: their groups; ``cover(i, x, y)`` gives the
     target points (distinct indices below ``n_points``) sensor i covers when it
     stands at (x, y); need: (n_points,) sensors each point needs to count as covered
-    (None: 1). Returns the sensors' new positions (n, 2) and their final mast
-    labels (a group that cannot merge without losing coverage below ``keep_at_least``
-    is split).
+    (None: 1); fixed: (n,) sensors that may not move (masts that stand already): a
+    group with one takes its site, if any. Returns the sensors' new positions (n, 2)
+    and their final mast labels (one mast per distinct position in a group: a group
+    that cannot merge without losing coverage below ``keep_at_least`` is split).
 
     Each trial site is scored by the change it makes on the points its moved sensors
     cover before or after the move, not by a recount of every sensor: the work grows
@@ -61,6 +63,7 @@ def choose_sites(
     """
     current = xy.copy()
     final = labels.copy()
+    still = np.zeros(len(xy), dtype=bool) if fixed is None else np.asarray(fixed, dtype=bool)
     covers = [np.asarray(cover(i, *p), dtype=np.int64) for i, p in enumerate(current)]
     counts = np.zeros(n_points, dtype=np.int32)  # sensors covering each point
     for c in covers:
@@ -70,13 +73,14 @@ def choose_sites(
     next_label = int(labels.max()) + 1 if len(labels) else 0
     for g in range(int(labels.max()) + 1 if len(labels) else 0):
         members = np.flatnonzero(labels == g)
-        sites = np.unique(current[members], axis=0)
-        if len(sites) == 1:
+        if len(np.unique(current[members], axis=0)) == 1:
             continue
+        anchored = members[still[members]]
+        sites = np.unique(current[anchored if len(anchored) else members], axis=0)
         # (covered, site, {moved sensor: its new cover})
         best: tuple[int, F64 | None, dict[int, NDArray[np.int64]]] = (-1, None, {})
         for site in sites:
-            moved = [m for m in members if not np.array_equal(current[m], site)]
+            moved = [m for m in members if not still[m] and not np.array_equal(current[m], site)]
             new = {m: np.asarray(cover(m, *site), dtype=np.int64) for m in moved}
             after = covered + _gain(counts, [covers[m] for m in moved], list(new.values()), k)
             if after > best[0]:
@@ -87,14 +91,13 @@ def choose_sites(
                 counts[covers[m]] -= 1
                 counts[c] += 1
                 covers[m] = c
-            current[members] = site
+                current[m] = site
             covered = after
-        else:
-            # Keep members apart: one mast per distinct position.
-            for site in sites[1:]:
-                at = members[np.all(current[members] == site, axis=1)]
-                final[at] = next_label
-                next_label += 1
+        # One mast per distinct position left in the group.
+        for spot in np.unique(current[members], axis=0)[1:]:
+            at = members[np.all(current[members] == spot, axis=1)]
+            final[at] = next_label
+            next_label += 1
     return current, _renumber(final)
 
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -48,7 +48,8 @@ class SensorRecord:
     sight), a (Multi)Polygon in world XY; footprint_m2 its area. drape: the footprint
     as a mesh on the ground, vertices (V, 3) world metres and triangles (T, 3), or
     None (then it lies flat at the mast foot). sensor_area: the area it stands in.
-    rays: sight rays its final evaluation cast.
+    rays: sight rays its final evaluation cast. existing: it stood before the plan
+    (given to the run, kept as it was, no cost).
     """
 
     n: int
@@ -68,12 +69,13 @@ class SensorRecord:
     drape: tuple[F64, I32] | None = None
     sensor_area: str | None = None
     rays: int = 0
+    existing: bool = False
 
 
 @dataclass(frozen=True)
 class MastRecord:
     """A mast: world position of its foot (``z_ground``), height, the sensors on it
-    (their ``n``)."""
+    (their ``n``); existing: it stands already (it carries an existing sensor)."""
 
     n: int
     x: float
@@ -81,6 +83,7 @@ class MastRecord:
     z_ground: float
     height_m: float
     sensors: tuple[int, ...]
+    existing: bool = False
 
 
 @dataclass(frozen=True)
@@ -151,7 +154,8 @@ class Provenance:
 
     fitness, epochs: per sensor (None: not optimized); evaluations, sight_rays: spent
     by the optimizer before the final evaluation; t0: ``time.perf_counter()`` when the
-    work began (wall_s is measured from it).
+    work began (wall_s is measured from it). existing: per sensor, whether it stood
+    already (None: none did).
     """
 
     t0: float
@@ -164,6 +168,7 @@ class Provenance:
     settings: Any = None
     model: SensorModel | None = None
     bound: PlanBound | None = None
+    existing: Sequence[bool] | None = None
 
 
 def finish_layout(
@@ -216,6 +221,7 @@ def finish_layout(
                 drape=drape(footprint, ground_world) if not footprint.is_empty else None,
                 sensor_area=getattr(area_at(scene, p.x, p.y), "name", None),
                 rays=cov.rays,
+                existing=bool(how.existing[k]) if how.existing is not None else False,
             )
         )
     masts = []
@@ -230,6 +236,7 @@ def finish_layout(
                 z_ground=first.z - first.height_m,
                 height_m=max(s.height_m for s in members),
                 sensors=tuple(s.n for s in members),
+                existing=any(s.existing for s in members),
             )
         )
     t_outline = time.perf_counter()
@@ -257,7 +264,18 @@ def finish_layout(
         coverage_k=int(getattr(how.settings, "coverage_k", 1) or 1),
     )
     if hasattr(how.settings, "objective"):
-        metrics.update(objective_metrics(len(sensors), len(masts), how.settings, how.bound))
+        # Existing sensors and masts cost nothing: the objective is the new ones'.
+        new_sensors = sum(not s.existing for s in sensors)
+        new_masts = sum(not m.existing for m in masts)
+        bound = how.bound
+        if bound is not None and any(m.existing for m in masts):
+            # New sensors may join existing masts at no mast cost, which the bound's
+            # candidate masts do not know: only "at least no new mast" holds.
+            bound = replace(bound, masts=0, cost_lp=0.0)
+        metrics.update(objective_metrics(new_sensors, new_masts, how.settings, bound))
+        metrics.update(
+            existing_sensors=len(sensors) - new_sensors, existing_masts=len(masts) - new_masts
+        )
 
     def world(areas):
         return tuple((a.name, shapely.affinity.translate(a.geometry, ox, oy)) for a in areas)

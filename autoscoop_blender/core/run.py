@@ -23,10 +23,11 @@ from typing import Any
 
 import numpy as np
 
+from .errors import InputError
 from .geom.raycast import RayCaster
 from .masts import choose_sites, group_positions
 from .model.scene import SceneModel
-from .model.sensors import SensorModel, SensorPose
+from .model.sensors import SensorModel, SensorPose, SensorSpec
 from .optimize.base import FixedSensor, Optimizer, Progress, Solution, newly_covered
 from .optimize.es import EvolutionStrategy
 from .optimize.greedy import Greedy
@@ -44,9 +45,12 @@ class Run:
     """One optimization of ``model`` sensors on a scene (see module docstring).
 
     make_caster: builds the caster over the scene's occluders (worker processes call
-    it too). resume: records of sensors fixed by an earlier run with the same inputs
-    (as given to ``on_fixed``); the run goes on after the last of them. workers:
-    processes that score each ES population (same answer).
+    it too). existing: sensors that stand already (world metres, the run's model):
+    they count toward coverage, are never moved or dropped, cost nothing, and their
+    masts carry new sensors for the sensor cost alone. resume: records of sensors
+    fixed by an earlier run with the same inputs (as given to ``on_fixed``); the run
+    goes on after the last of them. workers: processes that score each ES population
+    (same answer).
     """
 
     def __init__(
@@ -58,6 +62,7 @@ class Run:
         resume: Sequence[dict[str, Any]] = (),
         on_fixed: Callable[[dict[str, Any]], None] | None = None,
         workers: int = 1,
+        existing: Sequence[SensorSpec] = (),
     ) -> None:
         self.t0 = time.perf_counter()
         self.problem = Problem(scene, make_caster(), model, settings, workers)
@@ -66,6 +71,8 @@ class Run:
         self.solution = Solution(
             np.zeros(self.problem.n_targets, dtype=bool), need=self.problem.need.copy()
         )
+        for k, spec in enumerate(existing, start=1):
+            self._stand(k, spec)
         for record in resume:
             self._replay(record)
         self.optimizer = self._optimizer(make_caster, workers)
@@ -154,6 +161,28 @@ class Run:
             **s.state,
         }
 
+    def _stand(self, k: int, spec: SensorSpec) -> None:
+        """Fix existing sensor ``k`` where it stands: its height as given (``height_m``,
+        else its absolute ``z``, else the sensor area's or the model's)."""
+        p = self.problem
+        if spec.model != p.model:
+            raise InputError(
+                f"existing sensor {k} at ({spec.x:g}, {spec.y:g}): its model differs from "
+                "the run's; give existing sensors the model being planned"
+            )
+        x, y = (float(v) for v in p.scene.to_local(np.array([spec.x, spec.y])))
+        ground = float(p.grid.ground_z(np.array([[x, y]]))[0])
+        height = spec.height_m
+        if height is None and spec.z is not None:
+            height = spec.z - p.scene.origin[2] - ground
+        if height is None:
+            height = p.height_at(x, y)
+        pose = SensorPose(x, y, ground + height, height, spec.pitch_deg, spec.yaw_deg)
+        cov = p.evaluate(pose)
+        self.solution.sight_rays += cov.rays
+        newly = newly_covered(self.solution, cov.covered)
+        self.solution.fix(FixedSensor(pose, 0.0, 0, 0, newly, cov.covered, existing=True))
+
     def _replay(self, record: dict[str, Any]) -> None:
         """Re-fix a sensor from a checkpoint record and take over the optimizer's state."""
         p = self.problem
@@ -186,7 +215,8 @@ class Run:
             return p.evaluate(p.pose(x, y, pose.pitch_deg, pose.yaw_deg)).covered
 
         keep = min(self.solution.n_covered, p.goal)
-        new_xy, labels = choose_sites(xy, labels, cover, p.n_targets, keep, p.need)
+        existing = np.array([s.existing for s in sensors])
+        new_xy, labels = choose_sites(xy, labels, cover, p.n_targets, keep, p.need, existing)
         poses = [
             p.pose(x, y, s.pose.pitch_deg, s.pose.yaw_deg) for s, (x, y) in zip(sensors, new_xy)
         ]
@@ -207,6 +237,7 @@ class Run:
             settings=self.settings,
             model=p.model,
             bound=s.bound,
+            existing=[f.existing for f in s.sensors],
         )
         return finish_layout(
             p.scene, p.grid, coverages, mast_of, how, p.probe.extra_rays, need=p.need

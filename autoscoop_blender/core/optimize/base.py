@@ -29,7 +29,8 @@ class FixedSensor:
     ES's f_s; greedy: the points it raised towards their k), the ES epochs and
     evaluations it took, the target ordinals it newly covered to their k when it was
     fixed, and ``seen``: every target ordinal it covers (None: the same as ``newly``,
-    which is all a sensor can add when every k is 1)."""
+    which is all a sensor can add when every k is 1). existing: a sensor that stands
+    already (given to the run: kept as it is, at no cost)."""
 
     pose: SensorPose
     fitness: float
@@ -37,6 +38,7 @@ class FixedSensor:
     evaluations: int
     newly: NDArray[np.int64]
     seen: NDArray[np.int64] | None = None
+    existing: bool = False
 
     @property
     def new_points(self) -> int:
