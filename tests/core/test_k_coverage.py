@@ -4,6 +4,7 @@ against brute force, and every optimizer's plan recounted sensor by sensor."""
 import itertools
 import math
 from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -16,9 +17,12 @@ from autoscoop_blender.core.evaluate import evaluate_layout
 from autoscoop_blender.core.geom.grid import GroundGrid
 from autoscoop_blender.core.geom.raycast import BoxCaster
 from autoscoop_blender.core.model.scene import Area, SceneModel
-from autoscoop_blender.core.model.sensors import PAPER_CAMERA, SensorSpec
+from autoscoop_blender.core.candidates import CandidateSet
+from autoscoop_blender.core.model.sensors import PAPER_CAMERA, SensorPose, SensorSpec
+from autoscoop_blender.core.optimize.base import Solution, fix_candidate
 from autoscoop_blender.core.optimize.bound import cover_lp, site_cover
 from autoscoop_blender.core.optimize.cover import Cover, CoverInstance, complete, improve
+from autoscoop_blender.core.optimize.greedy import Greedy
 from autoscoop_blender.core.run import Run
 from autoscoop_blender.core.settings import CoverageSettings, OptimizeSettings
 from autoscoop_blender.io.reports import coverage_dict
@@ -262,3 +266,98 @@ def test_a_resumed_k2_run_goes_on_as_the_whole_one():
     assert [(s.x, s.y, s.pitch_deg, s.yaw_deg) for s in resumed.sensors] == [
         (s.x, s.y, s.pitch_deg, s.yaw_deg) for s in whole.sensors
     ]
+
+
+# ------------------------------------------------------------ greedy's gain rule
+
+# Eight target points 0..7, each asking k = 2; seven candidates (each on a mast of its
+# own, so the mast preference plays no part) and the points each covers. A gain is
+# the number of a candidate's points still below their k (one covered once counts
+# once, one covered twice not at all). By hand, the first on ties:
+#   start  A 5, B 4, G 4, C 3, D 3, E 1, F 4  -> A (0..4 once)
+#   then   B 4, G 4, C 3, D 3, E 1, F 4       -> B, the first 4 (0..3 twice)
+#   then   G 3, C 3, D 3, E 1, F 1            -> G (3 stays at k; 5, 6, 7 once)
+#   then   C 3, D 3, E 1, F 1                 -> C (4, 5, 6 twice)
+#   then   D 1, E 1, F 1                      -> D (7 twice): 8 of 8, the goal.
+# Counting points already at k picks F fourth (its 0, 1, 2 would still count: 4);
+# counting the missing cover (a point at 0 counted twice: after A, G 7 beats B 4) or
+# only points not covered at all (the k = 1 rule: B 0, G 3) picks G second; taking
+# a point that reaches k off twice (G 2 after B) picks C third.
+HAND_K2 = {
+    "A": [0, 1, 2, 3, 4],
+    "B": [0, 1, 2, 3],
+    "G": [3, 5, 6, 7],
+    "C": [4, 5, 6],
+    "D": [5, 6, 7],
+    "E": [7],
+    "F": [0, 1, 2, 7],
+}
+HAND_ORDER = ["A", "B", "G", "C", "D"]
+HAND_GAINS = [5, 4, 3, 3, 1]
+HAND_NEWLY = [[], [0, 1, 2, 3], [], [4, 5, 6], [7]]  # the points each brings to k = 2
+
+
+class HandProblem:
+    """What greedy reads of a Problem, on the hand-made candidates above: candidate
+    c stands at (10 c, 0), looks at pitch 45, yaw 0 and covers its ``HAND_K2`` points."""
+
+    def __init__(self):
+        rows = list(HAND_K2.values())
+        n = len(rows)
+        self.need = np.full(8, 2, dtype=np.int32)
+        self.rho = 1.0
+        self.goal = 8
+        self.max_sensors = 16
+        self.candidates = CandidateSet(
+            positions=np.array([(10.0 * c, 0.0) for c in range(n)]),
+            angles=(np.array([(45.0, 0.0)]),),
+            models=(PAPER_CAMERA,),
+            position=np.arange(n),
+            orientation=np.zeros(n, dtype=np.int64),
+            model=np.zeros(n, dtype=np.int64),
+            matrix=instance(rows, 8, self.goal).matrix,
+        )
+
+    def reached(self, n_covered):
+        return n_covered >= self.goal
+
+    def pose(self, x, y, pitch, yaw):
+        return SensorPose(float(x), float(y), 6.0, 6.0, float(pitch), float(yaw))
+
+    def evaluate(self, pose):
+        points = list(HAND_K2.values())[round(pose.x / 10.0)]
+        return SimpleNamespace(covered=np.array(points, dtype=np.int64), rays=0)
+
+
+def hand_names(sensors):
+    names = list(HAND_K2)
+    return [names[round(s.pose.x / 10.0)] for s in sensors]
+
+
+def test_greedy_at_k2_gains_count_points_still_below_their_k():
+    problem = HandProblem()
+    start = Solution(np.zeros(8, dtype=bool), need=problem.need)
+    res = drain(Greedy().solve(problem, start))
+    assert hand_names(res.sensors) == HAND_ORDER
+    assert [s.fitness for s in res.sensors] == HAND_GAINS
+    assert [s.newly.tolist() for s in res.sensors] == HAND_NEWLY
+    # Point 3: A, B, G; 5 and 6: G, C, D; the rest twice.
+    assert res.n_covered == 8 and res.counts.tolist() == [2, 2, 2, 3, 2, 3, 3, 2]
+    assert res.stop_reason.startswith("Reached the goal")
+    # The cover moves share the rule: complete() picks the same five.
+    inst = multi(list(HAND_K2.values()), 8, 8, [2] * 8)
+    cover = complete(Cover(inst), np.arange(len(HAND_K2)))
+    assert [list(HAND_K2)[c] for c in cover.chosen] == HAND_ORDER
+
+
+def test_greedy_resumed_at_k2_leaves_out_points_already_at_k():
+    """Resumed after A and B (points 0..3 twice, 4 once): G, C, D as in the whole
+    run; were the points at k counted from the start, F (4) would come before C."""
+    problem = HandProblem()
+    start = Solution(np.zeros(8, dtype=bool), need=problem.need)
+    for c in (0, 1):
+        fix_candidate(problem, start, problem.candidates, c)
+    assert start.counts.tolist() == [2, 2, 2, 2, 1, 0, 0, 0] and start.n_covered == 4
+    res = drain(Greedy().solve(problem, start))
+    assert hand_names(res.sensors) == HAND_ORDER
+    assert [s.fitness for s in res.sensors[2:]] == HAND_GAINS[2:]
