@@ -162,12 +162,14 @@ def _k_in_effect(result: Result) -> dict[str, Any]:
     }
 
 
-POINTS_HEADER = ("x", "y", "z", "n_visible", "n_covered", "best_density")
+POINTS_HEADER = ("x", "y", "z", "n_visible", "n_covered", "best_density", "k_needed", "covered")
 
 
-def point_rows(result: Result) -> list[tuple[float, float, float, int, int, float]]:
+def point_rows(result: Result) -> list[tuple[float, float, float, int, int, float, int, int]]:
     """One row per target point (``POINTS_HEADER``): world x, y, z, the sensors that
-    see it and that cover it, and the best density among those (points/m^2)."""
+    see it and that cover it, the best density among those (points/m^2), the sensors
+    it needs to count as covered (its k: its target area's ``coverage_k`` or the
+    setting's) and whether it does (1: n_covered >= k_needed, else 0)."""
     best = result.best_density if result.best_density is not None else np.zeros(len(result.points))
     return [
         (
@@ -177,8 +179,12 @@ def point_rows(result: Result) -> list[tuple[float, float, float, int, int, floa
             int(v),
             int(c),
             round(float(b), 4),
+            int(k),
+            int(c >= k),
         )
-        for (x, y, z), v, c, b in zip(result.points, result.n_visible, result.n_covered, best)
+        for (x, y, z), v, c, b, k in zip(
+            result.points, result.n_visible, result.n_covered, best, result.k_need
+        )
     ]
 
 

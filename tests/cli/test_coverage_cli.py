@@ -32,8 +32,13 @@ def test_coverage_outputs_agree(tmp_path, sensors_file):
     assert res["target_area_m2"] == pytest.approx(2500.0)
     assert res["target_points"] == 2500
     rows = list(csv.DictReader(pts.open()))
-    assert list(rows[0]) == ["x", "y", "z", "n_visible", "n_covered", "best_density"]
+    assert list(rows[0]) == [
+        "x", "y", "z", "n_visible", "n_covered", "best_density", "k_needed", "covered",
+    ]  # fmt: skip
     assert len(rows) == res["target_points"]
+    # k = 1 everywhere: a point counts when one sensor covers it.
+    assert {r["k_needed"] for r in rows} == {"1"}
+    assert all(r["covered"] == str(int(int(r["n_covered"]) > 0)) for r in rows)
     covered = sum(int(r["n_covered"]) > 0 for r in rows)
     assert res["coverage_fraction"] == pytest.approx(covered / len(rows))
     assert res["covered_m2"] == pytest.approx(covered * 1.0)

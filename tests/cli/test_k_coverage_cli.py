@@ -82,6 +82,55 @@ def test_headless_coverage_reports_k_1_to_3_on_flat_wall(tmp_path, sensors_file)
     np.testing.assert_array_equal(n >= 2, twice)
     thrice = (np.abs(x - 35) < 3) & (np.abs(y) < 3)
     np.testing.assert_array_equal(n >= 3, thrice)
+    # --coverage-k 2 with no area of its own: every point needs 2.
+    assert {r["k_needed"] for r in rows} == {"2"}
+    np.testing.assert_array_equal([int(r["covered"]) for r in rows], twice.astype(int))
+
+
+def test_points_csv_gives_each_point_its_areas_k(tmp_path, sensors_file, blend_file):
+    """Target_Junction (x 0..15, y 0..10) asks coverage_k = 2, Target_Straight
+    (x 15..30) nothing (the setting: 1). Squares x 0..20 and x 10..30 (y 0..10) and
+    x 14..20, y 2..8: once at x 0..10 and 20..30, twice at x 10..20, three times in
+    the small square. Counted: the Junction's x 10..15 (50 of its 150 points) and all
+    150 of the Straight: 200 of 300."""
+
+    def build(b):
+        b.plane("Ground", -10, -10, 40, 20)
+        junction = b.curve("Target_Junction", [b.rect(0, 0, 15, 10)])
+        junction["coverage_k"] = 2
+        b.curve("Target_Straight", [b.rect(15, 0, 30, 10)])
+        b.curve("SensorArea", [b.rect(-1, -1, 31, 11)])
+
+    sensors = sensors_file(
+        {
+            "model": DOWN,
+            "sensors": [down_camera(10, 5, 20), down_camera(20, 5, 20), down_camera(17, 5, 6)],
+        }
+    )
+    out, points = tmp_path / "out.json", tmp_path / "points.csv"
+    code, _, stderr = run_headless(
+        "coverage", blend_file(build), "--sensors", sensors, "--out", out, "--points-csv", points
+    )
+    assert code == 0, stderr
+    doc = json.loads(out.read_text())
+    assert doc["target_points"] == 300
+    assert doc["coverage_k"] == {"setting": 1, "max": 2, "areas": {"Target_Junction": 2}}
+    assert doc["covered_m2"] == 200.0
+    with points.open() as f:
+        rows = list(csv.DictReader(f))
+    x = np.array([float(r["x"]) for r in rows])
+    y = np.array([float(r["y"]) for r in rows])
+    n = np.array([int(r["n_covered"]) for r in rows])
+    k = np.array([int(r["k_needed"]) for r in rows])
+    covered = np.array([int(r["covered"]) for r in rows])
+    junction = x < 15
+    np.testing.assert_array_equal(k, np.where(junction, 2, 1))
+    # The counts by hand, then covered: n_covered >= k_needed.
+    small = (np.abs(x - 17) < 3) & (np.abs(y - 5) < 3)
+    np.testing.assert_array_equal(n, np.where((x > 10) & (x < 20), 2, 1) + small)
+    np.testing.assert_array_equal(covered, (n >= k).astype(int))
+    np.testing.assert_array_equal(covered == 1, ~junction | (x > 10))
+    assert covered.sum() == 200
 
 
 def test_a_checkpoint_of_another_k_is_not_resumed(tmp_path):
