@@ -18,18 +18,31 @@ from bpy.props import (
     EnumProperty,
     FloatProperty,
     IntProperty,
+    IntVectorProperty,
     PointerProperty,
     StringProperty,
 )
 
-from .core.model.sensors import PRESETS, SensorModel
+from .core.model.sensors import DORI_PX_PER_M, MAX_PX_AXIS, MAX_PX_PER_M, PRESETS, SensorModel
 from .core.settings import PANEL_SETTINGS, Setting
 
 _PRESET_ITEMS = [
     ("paper_camera", "Paper camera", "The paper's Table I camera: 80 x 80 deg, 80 m, 7 m mast"),
     ("roadside_lidar", "Roadside lidar", "A 64-beam spinning lidar: 360 x 33.2 deg, 80 m"),
     ("traffic_radar", "Traffic radar", "A 77 GHz traffic radar: 100 x 16 deg, 150 m"),
+    ("cctv_camera", "CCTV camera", "A 1080p camera, 80 deg, 50 m, judged by DORI detect"),
 ]
+# The DORI levels (EN 62676-4) that set the pixel density, "none" (0) first; "custom"
+# is what the choice shows for a density typed by hand that is no level.
+_DORI_ITEMS = [
+    ("NONE", "None", "No pixel density required (0 px/m)", 0),
+    *(
+        (name.upper(), f"{name.capitalize()} {px:g}", f"DORI {name}: {px:g} px/m", n + 1)
+        for n, (name, px) in enumerate(DORI_PX_PER_M.items())
+    ),
+    ("CUSTOM", "Custom", "The pixel density as typed, no DORI level", len(DORI_PX_PER_M) + 1),
+]
+_DORI_PX = [0.0, *DORI_PX_PER_M.values()]
 _SENSOR_FIELDS = (
     "kind",
     "pattern",
@@ -57,9 +70,27 @@ def _apply_preset(self: AUTOSCOOP_PG_settings, _context: bpy.types.Context) -> N
                 if name in ("kind", "pattern")
                 else getattr(model, name),
             )
+        # The pixel fields: a preset without them clears them (0 x 0, 0 px/m).
+        self.resolution_px = model.resolution_px or (0, 0)
+        self.min_px_per_m = model.min_px_per_m
     finally:
         self["_loading"] = False
     _sensor_changed(self, _context)
+
+
+def _get_dori(self: AUTOSCOOP_PG_settings) -> int:
+    """The DORI level the pixel density is (float properties are single precision:
+    the levels are exact in it); "custom" when it is none of them."""
+    for n, px in enumerate(_DORI_PX):
+        if abs(self.min_px_per_m - px) < 1e-3:
+            return n
+    return len(_DORI_PX)
+
+
+def _set_dori(self: AUTOSCOOP_PG_settings, value: int) -> None:
+    """Choosing a level sets the pixel density; "custom" keeps it as typed."""
+    if value < len(_DORI_PX):
+        self.min_px_per_m = _DORI_PX[value]
 
 
 def _sensor_changed(self: AUTOSCOOP_PG_settings, _context: bpy.types.Context) -> None:
@@ -124,6 +155,31 @@ class AUTOSCOOP_PG_settings(bpy.types.PropertyGroup):
         min=0.0,
         update=_sensor_changed,
     )
+    resolution_px: IntVectorProperty(  # type: ignore[valid-type]
+        name="Resolution",
+        description="Image width and height in pixels, for the pixel density (DORI) of a "
+        "pinhole camera; 0 x 0: none",
+        size=2,
+        default=(0, 0),
+        min=0,
+        max=MAX_PX_AXIS,
+        update=_sensor_changed,
+    )
+    min_px_per_m: FloatProperty(  # type: ignore[valid-type]
+        name="Pixel density",
+        description="Pixels per metre a point needs to count (needs the resolution); 0: none",
+        default=0.0,
+        min=0.0,
+        max=MAX_PX_PER_M,
+        update=_sensor_changed,
+    )
+    dori: EnumProperty(  # type: ignore[valid-type]
+        name="DORI level",
+        description="Sets the pixel density to a DORI level of EN 62676-4",
+        items=_DORI_ITEMS,
+        get=_get_dori,
+        set=_set_dori,
+    )
     flat_footprint: StringProperty(name="Flat footprint", default="")  # type: ignore[valid-type]
     check_text: StringProperty(name="Scene check", default="")  # type: ignore[valid-type]
     # The check's notes: where the sensor areas offer no mast site, and why.
@@ -146,6 +202,11 @@ class AUTOSCOOP_PG_settings(bpy.types.PropertyGroup):
         values = {name: getattr(self, name) for name in _SENSOR_FIELDS}
         values["kind"] = values["kind"].lower()
         values["pattern"] = values["pattern"].lower()
+        width, height = self.resolution_px
+        # 0 x 0: no resolution; a single 0 goes to the model's check, which names it.
+        values["resolution_px"] = None if width == height == 0 else (width, height)
+        # As typed, not as Blender's single precision keeps it.
+        values["min_px_per_m"] = float(f"{self.min_px_per_m:.7g}")
         return SensorModel(**values)
 
 

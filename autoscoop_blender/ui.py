@@ -88,6 +88,19 @@ class AUTOSCOOP_PT_sensor(_Panel, bpy.types.Panel):
         col.prop(props, "rays_h")
         col.prop(props, "rays_v")
         layout.prop(props, "min_density_per_m2")
+        # A pinhole camera's pixel density (DORI): one row each, the label aligned with
+        # the split properties' above (Blender splits at 0.4).
+        for label, fields in (
+            ("Resolution", ("resolution_px",)),
+            ("Pixel density", ("min_px_per_m", "dori")),
+        ):
+            split = layout.split(factor=0.4)
+            split.alignment = "RIGHT"
+            split.label(text=label)
+            row = split.row(align=True)
+            row.use_property_split = False
+            for name in fields:
+                row.prop(props, name, text="")
         text = props.flat_footprint or pipeline.flat_footprint_text(props)
         row = layout.row()
         row.alert = text.startswith("invalid")

@@ -10,6 +10,7 @@ import pytest
 import autoscoop_blender
 from autoscoop_blender import names, ui
 from autoscoop_blender import ops as ui_ops
+from autoscoop_blender.core.errors import AutoscoopError
 from autoscoop_blender.scene import extract, pipeline
 from tests.blender import builders as b
 from tests.blender.conftest import SAMPLES
@@ -376,6 +377,67 @@ def test_panel_properties_come_from_the_settings_schema():
     settings = pipeline.settings_from(props)
     assert settings.es == ESParams(mu=7) and settings.optimizer == "greedy" and settings.seed == 3
     assert pipeline.coverage_settings_from(props).grid_m == props.grid_m
+
+
+def test_panel_pixel_density_fields_reach_the_sensor_model():
+    """Resolution (width, height; 0 x 0: none) and the pixel density (0: none) with its
+    DORI choice, which sets it: EN 62676-4's recognise is 125 px/m, observe 62."""
+    props = bpy.context.scene.autoscoop
+    assert tuple(props.resolution_px) == (0, 0) and props.min_px_per_m == 0.0
+    assert props.dori == "NONE"
+    model = pipeline.model_from(props)
+    assert (model.resolution_px, model.min_px_per_m) == (None, 0.0)
+    # A pinhole camera with square pixels: 1920 / 1080 = tan 40 deg / tan(v / 2).
+    props.kind, props.pattern = "CAMERA", "PINHOLE"
+    props.h_fov_deg, props.v_fov_deg = 80.0, 50.534
+    props.resolution_px = (1920, 1080)
+    props.dori = "RECOGNISE"
+    assert props.min_px_per_m == 125.0
+    model = pipeline.model_from(props)
+    assert model.resolution_px == (1920, 1080) and model.min_px_per_m == 125.0
+    assert props.flat_footprint.endswith("(largest over pitch)")  # valid, recomputed
+    # A density typed by hand shows its level, or "custom"; the model takes it as typed.
+    props.min_px_per_m = 62.0
+    assert props.dori == "OBSERVE"
+    props.min_px_per_m = 99.9
+    assert props.dori == "CUSTOM" and pipeline.model_from(props).min_px_per_m == 99.9
+    props.dori = "CUSTOM"  # keeps the number
+    assert pipeline.model_from(props).min_px_per_m == 99.9
+    props.dori = "NONE"
+    assert props.min_px_per_m == 0.0 and pipeline.model_from(props).min_px_per_m == 0.0
+    # One side 0 is no "none": the model's check names it.
+    props.resolution_px = (1920, 0)
+    with pytest.raises(AutoscoopError, match="resolution_px height 0"):
+        pipeline.model_from(props)
+    # A density without a resolution is refused, naming the field.
+    props.resolution_px = (0, 0)
+    props.dori = "DETECT"
+    with pytest.raises(AutoscoopError, match="min_px_per_m 25 needs resolution_px"):
+        pipeline.model_from(props)
+    assert props.flat_footprint.startswith("invalid")
+    # Presets set both: the CCTV camera's, and none for the paper camera.
+    props.preset = "cctv_camera"
+    assert tuple(props.resolution_px) == (1920, 1080) and props.dori == "DETECT"
+    model = pipeline.model_from(props)
+    assert (model.resolution_px, model.min_px_per_m) == ((1920, 1080), 25.0)
+    props.preset = "paper_camera"
+    assert tuple(props.resolution_px) == (0, 0) and props.dori == "NONE"
+    model = pipeline.model_from(props)
+    assert (model.resolution_px, model.min_px_per_m) == (None, 0.0)
+
+
+def test_optimize_runs_with_the_panels_pixel_density():
+    """The optimize operator takes the panel's pixel fields into its model (written
+    with the result), and refuses a density with no resolution in one line."""
+    props = _flat_wall(optimizer="greedy")
+    props.preset = "cctv_camera"
+    props.dori = "RECOGNISE"
+    assert bpy.ops.autoscoop.optimize() == {"FINISHED"}
+    model = json.loads(props.result_json)["model"]
+    assert model["resolution_px"] == [1920, 1080] and model["min_px_per_m"] == 125.0
+    props.resolution_px = (0, 0)
+    with pytest.raises(RuntimeError, match="min_px_per_m 125 needs resolution_px"):
+        bpy.ops.autoscoop.optimize()
 
 
 class _Event:
