@@ -21,6 +21,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -28,7 +29,7 @@ import numpy as np
 
 from autoscoop_blender.core.errors import InputError
 from autoscoop_blender.core.model.scene import SceneModel
-from autoscoop_blender.core.model.sensors import SensorModel
+from autoscoop_blender.core.model.sensors import SensorModel, SensorSpec
 from autoscoop_blender.core.settings import OptimizeSettings, from_mapping
 
 NAME = "checkpoint.jsonl"
@@ -48,15 +49,23 @@ def scene_fingerprint(scene: SceneModel) -> str:
 
 
 def checkpoint_header(
-    scene: SceneModel, model: SensorModel, settings: OptimizeSettings
+    scene: SceneModel,
+    model: SensorModel,
+    settings: OptimizeSettings,
+    existing: Sequence[SensorSpec] = (),
 ) -> dict[str, Any]:
-    """What a run's answer depends on: the scene (its fingerprint), model and settings."""
-    return {
+    """What a run's answer depends on: the scene (its fingerprint), model, settings
+    and the sensors that stand already (only when there are any, so that older
+    checkpoints still match)."""
+    header = {
         "scene": scene.source,
         "scene_fingerprint": scene_fingerprint(scene),
         "model": model.to_dict(),
         "settings": settings.to_dict(),
     }
+    if existing:
+        header["existing"] = [s.to_dict() for s in existing]
+    return header
 
 
 def _settings(stored: Any) -> OptimizeSettings | None:
@@ -180,6 +189,7 @@ class Checkpoint:
             "a different model": header.get("model") != self.header["model"],
             "different settings": _settings(header.get("settings", {}))
             != _settings(self.header["settings"]),
+            "different existing sensors": header.get("existing") != self.header.get("existing"),
         }
         for what, differ in differs.items():
             if differ:

@@ -80,6 +80,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--config", help="TOML file of settings and model (the options above override it)"
     )
     opt.add_argument("--out-dir", default="out", help="output folder (default out/)")
+    opt.add_argument(
+        "--existing",
+        metavar="FILE.json",
+        help="sensors that stand already (a sensors file, or a result.json): kept as "
+        "given, counted toward coverage, at no cost; the plan adds to them",
+    )
     opt.add_argument("--resume", action="store_true", help="go on from the checkpoint")
     opt.add_argument(
         "--repair",

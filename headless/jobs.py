@@ -85,6 +85,7 @@ def optimize(args: argparse.Namespace) -> int:
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"{out_dir}: exists and is not a folder")
 
+    existing = read_sensors(args.existing) if args.existing else []
     scene, make_caster = load_scene(args.scene or default_scene(), model.range_m)
     for w in scene.warnings:
         print(f"warning: {w}", file=sys.stderr)
@@ -96,11 +97,11 @@ def optimize(args: argparse.Namespace) -> int:
                 f"note: {out_dir}: took over the lock of run {lock.stale_pid}, which has ended",
                 file=sys.stderr,
             )
-        checkpoint = Checkpoint(out_dir, checkpoint_header(scene, model, settings))
+        checkpoint = Checkpoint(out_dir, checkpoint_header(scene, model, settings, existing))
         resume = checkpoint.resume(repair=args.repair) if args.resume else []
         run = Run(
             scene, make_caster, model, settings, resume, on_fixed=checkpoint.append,
-            workers=workers,
+            workers=workers, existing=existing,
         )  # fmt: skip
         if resume:
             print(f"resuming after {len(resume)} fixed sensor(s)", file=sys.stderr)
@@ -121,9 +122,12 @@ def optimize(args: argparse.Namespace) -> int:
         result = run.result()
         write_results(result, out_dir, render=args.render)
     m = result.metrics
+    kept = ""
+    if existing:
+        kept = f" ({m['existing_sensors']} and {m['existing_masts']} of them existing)"
     print(
-        f"{m['sensors']} sensors on {m['masts']} masts cover {m['coverage_fraction']:.2%} "
-        f"in {m['wall_s']:.1f} s -> {out_dir}\n{result.stop_reason}"
+        f"{m['sensors']} sensors on {m['masts']} masts{kept} cover "
+        f"{m['coverage_fraction']:.2%} in {m['wall_s']:.1f} s -> {out_dir}\n{result.stop_reason}"
     )
     if m["coverage_fraction"] < settings.rho:
         print(

@@ -34,6 +34,7 @@ SENSORS_CSV_HEADER = (
     "fitness",
     "target_covered_m2",
     "mast",
+    "existing",
 )
 
 
@@ -85,6 +86,7 @@ def result_dict(result: Result, extra_versions: dict[str, str] | None = None) ->
                 "epochs": s.epochs,
                 "target_covered_m2": s.covered_target_m2,
                 "footprint_m2": round(s.footprint_m2, 2),
+                "existing": s.existing,
             }
             for s in result.sensors
         ],
@@ -96,6 +98,7 @@ def result_dict(result: Result, extra_versions: dict[str, str] | None = None) ->
                 "z_ground": round(m.z_ground, 4),
                 "height_m": m.height_m,
                 "sensors": list(m.sensors),
+                "existing": m.existing,
             }
             for m in result.masts
         ],
@@ -189,7 +192,8 @@ def point_rows(result: Result) -> list[tuple[float, float, float, int, int, floa
 
 
 def sensors_csv(result: Result) -> str:
-    """The paper's Table III columns, one row per sensor, plus its mast (1-based)."""
+    """The paper's Table III columns, one row per sensor, plus its mast (1-based) and
+    whether it stood already (1) or is new (0)."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(SENSORS_CSV_HEADER)
@@ -205,6 +209,7 @@ def sensors_csv(result: Result) -> str:
                 f"{s.fitness:.1f}",
                 f"{s.covered_target_m2:.0f}",
                 s.mast + 1,
+                int(s.existing),
             ]
         )
     return buf.getvalue()
@@ -224,6 +229,7 @@ def sensors_geojson(result: Result) -> dict[str, Any]:
                     "mast": m.n,
                     "height_m": m.height_m,
                     "sensors": list(m.sensors),
+                    "existing": m.existing,
                 },
             }
         )
@@ -240,6 +246,7 @@ def sensors_geojson(result: Result) -> dict[str, Any]:
                     "pitch_deg": round(s.pitch_deg, 3),
                     "yaw_deg": round(s.yaw_deg, 3),
                     "model": s.model.to_dict(),
+                    "existing": s.existing,
                 },
             }
         )

@@ -33,7 +33,7 @@ RESULT_TOP_KEYS = (
     "stop_reason", "uncovered", "no_mast_sites", "masts", "origin",
 )  # fmt: skip
 RESULT_SENSOR_KEYS = (
-    "n", "z", "mast", "fitness", "epochs", "target_covered_m2", "footprint_m2",
+    "n", "z", "mast", "fitness", "epochs", "target_covered_m2", "footprint_m2", "existing",
 )  # fmt: skip
 
 

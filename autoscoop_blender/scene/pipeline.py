@@ -162,12 +162,20 @@ class OptimizeJob:
         self.model = model_from(props)
         self.settings = settings_from(props)
         self.scene_model = extract_scene(context.scene).cropped(self.model.range_m)
-        self.run = Run(self.scene_model, BVHFactory.of(self.scene_model), self.model, self.settings)
+        # Cameras the user marked as sensors stand already: the plan adds to them.
+        existing = [camera_spec(o, self.model) for o in marked_cameras(context.scene)]
+        self.run = Run(
+            self.scene_model,
+            BVHFactory.of(self.scene_model),
+            self.model,
+            self.settings,
+            existing=existing,
+        )
         self.steps = self.run.steps()
         self.progress = Progress("search", 0, 0.0, self.settings.rho, 0, 0)
         self.done = False
         self.stopping = False  # asked to end early with the best plan so far
-        self._shown = 0
+        self._shown = len(existing)  # the live view shows new sensors only
 
     def step(self, budget_s: float) -> bool:
         """Work for about ``budget_s`` seconds; True when the run has finished."""
@@ -239,11 +247,17 @@ def sensor_cameras(scene: bpy.types.Scene) -> list[bpy.types.Object]:
     as sensors (``autoscoop_role = "sensor"``), in a stable order."""
     results = find_results(scene)
     spawned = [o for o in results.all_objects if o.type == "CAMERA"] if results else []
+    marked = [o for o in marked_cameras(scene) if o not in spawned]
+    return sorted(spawned, key=lambda o: o.name) + marked
+
+
+def marked_cameras(scene: bpy.types.Scene) -> list[bpy.types.Object]:
+    """Cameras the user marked as sensors (``autoscoop_role = "sensor"``), by name."""
     marked = [
         o for o in scene.objects
-        if o.type == "CAMERA" and o.get(names.ROLE_PROP) == names.ROLE_SENSOR and o not in spawned
+        if o.type == "CAMERA" and o.get(names.ROLE_PROP) == names.ROLE_SENSOR
     ]  # fmt: skip
-    return sorted(spawned, key=lambda o: o.name) + sorted(marked, key=lambda o: o.name)
+    return sorted(marked, key=lambda o: o.name)
 
 
 def camera_spec(obj: bpy.types.Object, fallback: SensorModel) -> SensorSpec:

@@ -151,9 +151,11 @@ def test_output_files(default_run):
     res = json.loads((out / "result.json").read_text())
     rows = list(csv.DictReader((out / "sensors.csv").open()))
     assert list(rows[0]) == [
-        "n", "x", "y", "z", "pitch_deg", "yaw_deg", "fitness", "target_covered_m2", "mast"
+        "n", "x", "y", "z", "pitch_deg", "yaw_deg", "fitness", "target_covered_m2", "mast",
+        "existing",
     ]  # fmt: skip
     assert len(rows) == len(res["sensors"])
+    assert {r["existing"] for r in rows} == {"0"}  # a plan from scratch: all new
     for row, s in zip(rows, res["sensors"]):
         assert float(row["x"]) == pytest.approx(s["x"], abs=1e-3)
         assert int(row["mast"]) == s["mast"]

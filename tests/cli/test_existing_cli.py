@@ -1,0 +1,63 @@
+"""``headless optimize --existing FILE.json``: sensors that stand already are kept as
+given, flagged in every output, and the plan adds no more than one from scratch."""
+
+import csv
+import json
+
+from tests.cli.conftest import SAMPLES, run_headless
+
+
+def _goal(tmp_path):
+    """flat_wall's wall hides part of its target from its sensor area: 70 % is what
+    any plan there can reach, so the goal is set below it."""
+    cfg = tmp_path / "goal.toml"
+    cfg.write_text('optimizer = "greedy"\nrho = 0.65\n')
+    return ("--config", cfg)
+
+
+def _optimize(out, *extra):
+    code, _, stderr = run_headless(
+        "optimize", SAMPLES / "flat_wall.blend", *_goal(out.parent), "--out-dir", out, *extra
+    )
+    assert code == 0, stderr
+    return json.loads((out / "result.json").read_text())
+
+
+def test_existing_sensors_are_kept_flagged_and_added_to(tmp_path, sensors_file):
+    scratch = _optimize(tmp_path / "scratch")
+    # Two sensors of the plan from scratch, as a sensors file: they stand already.
+    given = [
+        {k: s[k] for k in ("x", "y", "height_m", "pitch_deg", "yaw_deg")}
+        for s in scratch["sensors"][:2]
+    ]
+    existing = sensors_file({"model": scratch["model"], "sensors": given})
+    doc = _optimize(tmp_path / "plan", "--existing", existing)
+
+    kept = [s for s in doc["sensors"] if s["existing"]]
+    assert [(s["x"], s["y"], s["z"], s["pitch_deg"], s["yaw_deg"]) for s in kept] == [
+        (s["x"], s["y"], s["z"], s["pitch_deg"], s["yaw_deg"]) for s in scratch["sensors"][:2]
+    ]
+    new = [s for s in doc["sensors"] if not s["existing"]]
+    assert doc["metrics"]["coverage_fraction"] >= 0.65
+    assert len(new) <= len(scratch["sensors"])
+    assert doc["metrics"]["existing_sensors"] == 2
+    # Every output says which ones stood already.
+    rows = list(csv.DictReader((tmp_path / "plan" / "sensors.csv").open()))
+    assert [r["existing"] for r in rows] == ["1" if s["existing"] else "0" for s in doc["sensors"]]
+    geo = json.loads((tmp_path / "plan" / "sensors_local.geojson").read_text())
+    flags = [f["properties"]["existing"] for f in geo["features"] if f["properties"]["kind"] == "sensor"]
+    assert flags == [s["existing"] for s in doc["sensors"]]
+    assert sum(m["existing"] for m in doc["masts"]) == doc["metrics"]["existing_masts"] >= 1
+
+
+def test_a_checkpoint_made_without_them_is_refused(tmp_path, sensors_file):
+    out = tmp_path / "plan"
+    scratch = _optimize(out)
+    given = [{k: scratch["sensors"][0][k] for k in ("x", "y", "height_m", "pitch_deg", "yaw_deg")}]
+    existing = sensors_file({"model": scratch["model"], "sensors": given})
+    code, _, stderr = run_headless(
+        "optimize", SAMPLES / "flat_wall.blend", *_goal(tmp_path), "--out-dir", out,
+        "--existing", existing, "--resume",
+    )  # fmt: skip
+    assert code != 0
+    assert "made with different existing sensors; run without --resume" in stderr
