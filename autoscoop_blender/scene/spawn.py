@@ -264,6 +264,7 @@ def _sensor_object(rec: SensorRecord) -> bpy.types.Object:
     obj["fitness"] = float(rec.fitness)
     obj["covered_target_m2"] = float(rec.covered_target_m2)
     obj["footprint_m2"] = float(rec.footprint_m2)
+    obj["existing"] = rec.existing  # it stood before the plan
     return obj
 
 
@@ -412,6 +413,7 @@ def _mast_object(mast: MastRecord, material: bpy.types.Material) -> bpy.types.Ob
     obj[MAST_PROP] = int(mast.n)
     obj["height_m"] = float(mast.height_m)
     obj["sensors"] = [int(s) for s in mast.sensors]
+    obj["existing"] = mast.existing  # it stood before the plan
     return obj
 
 

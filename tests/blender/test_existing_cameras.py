@@ -40,5 +40,9 @@ def test_a_marked_camera_is_kept_and_flagged():
     assert [s["existing"] for s in doc["sensors"][1:]] == [False] * (len(doc["sensors"]) - 1)
     assert doc["metrics"]["existing_sensors"] == 1
     assert json.loads(props.result_json)["sensors"][0]["existing"] is True
+    # The results' camera for it says so too.
+    spawned = [o for o in bpy.data.objects if o.type == "CAMERA" and o.get("existing")]
+    assert len(spawned) == 1 and tuple(spawned[0].location) == pytest.approx((-8.0, 0.0, 7.0))
+    assert spawned[0] is not cam
     # The user's camera is untouched.
     assert tuple(cam.location) == pytest.approx((-8.0, 0.0, 7.0))
