@@ -39,6 +39,8 @@ TESTS_FOR: dict[str, list[str]] = {
     # test_masts.py holds the grouping's own cases and the invariants of whole plans;
     # test_optimize.py also reaches it, but runs ~10x longer per surviving mutant.
     "autoscoop_blender/core/masts.py": ["tests/core/test_masts.py"],
+    # test_sites.py builds scenes from numpy boxes (no Blender): a run of seconds.
+    "autoscoop_blender/core/model/sites.py": ["tests/core/test_sites.py"],
     "autoscoop_blender/core/candidates.py": [
         "tests/core/test_optimize.py",
         "tests/core/test_lp.py",

@@ -79,3 +79,119 @@ def test_mast_invariants_of_a_plan(optimizer):
         assert s.n in mast.sensors
     assert sum(len(m.sensors) for m in res.masts) == len(res.sensors)
     assert len({(s.x, s.y) for s in res.sensors}) == len(res.masts)
+
+
+def test_no_sensor_and_one_sensor_make_no_group_and_one():
+    """The shortcuts for fewer than two positions: integer labels, as many as given."""
+    none = group_positions(np.zeros((0, 2)), 3.0)
+    one = group_positions(np.array([[5.0, -2.0]]), 3.0)
+    assert none.shape == (0,) and none.dtype.kind == "i"
+    assert one.tolist() == [0] and one.dtype.kind == "i"
+    assert group_positions(np.array([[0.0, 0.0], [9.0, 0.0]]), 3.0).tolist() == [0, 1]
+    xy, final = choose_sites(np.zeros((0, 2)), np.zeros(0, dtype=int), None, 5, 0)
+    assert xy.shape == (0, 2) and final.shape == (0,) and final.dtype.kind == "i"
+
+
+def _band(i, x, y):
+    """Sensor i at (x, y) covers the whole metres within 1 of x (0..22); sensor 2
+    within 3."""
+    r = 3 if i == 2 else 1
+    return np.arange(max(0, int(x) - r), min(23, int(x) + r + 1))
+
+
+def test_a_standing_sensor_holds_its_site():
+    """A (fixed) at x = 0 and B at 2: free, they would meet at 2 (B's band 1..3 and A's
+    0..1 moved there: 1..3, 3 points, against 0..1 at 0: 2 points); A standing, B
+    comes to A."""
+    xy = np.array([[0, 0], [2, 0]], float)
+    labels = np.array([0, 0])
+    free, _ = choose_sites(xy, labels, _band, n_points=23, keep_at_least=0)
+    assert free.tolist() == [[2, 0], [2, 0]]
+    held, final = choose_sites(
+        xy, labels, _band, n_points=23, keep_at_least=0, fixed=np.array([True, False])
+    )
+    assert held.tolist() == [[0, 0], [0, 0]] and final.tolist() == [0, 0]
+
+
+def test_two_standing_sensors_in_a_group_stay_and_the_free_one_joins_the_better():
+    """A at 10 and B at 21 stand; C (band of 3) at 15 joins one of them. Now: A 9..11,
+    C 12..18, B 20..22: 13 points. C at 10: 7..13 and 20..22, 10 points; C at 21:
+    9..11 and 18..22 (the road ends at 22), 8 points. C goes to A; B stays: two masts."""
+    xy = np.array([[10, 0], [21, 0], [15, 0]], float)
+    new_xy, final = choose_sites(
+        xy,
+        np.array([0, 0, 0]),
+        _band,
+        n_points=23,
+        keep_at_least=0,
+        fixed=np.array([True, True, False]),
+    )
+    assert new_xy.tolist() == [[10, 0], [21, 0], [10, 0]]
+    assert final.tolist() == [0, 1, 0]
+
+
+def _reference(xy, labels, cover, n_points, keep_at_least, need=None, fixed=None):
+    """choose_sites by brute force, from its docstring: groups in label order; each
+    tries every distinct position of its standing members (of all its members when
+    none stands), lowest (x, y) first, moving its free members there and recounting
+    every point over every sensor; the first best site is taken when it keeps at
+    least ``keep_at_least`` points covered to their need. One mast per distinct
+    position of a group, numbered in order of first sensor."""
+    n = len(xy)
+    pos = [tuple(map(float, p)) for p in xy]
+    still = [False] * n if fixed is None else [bool(f) for f in fixed]
+    k = [1] * n_points if need is None else [int(v) for v in need]
+
+    def covered(at):
+        counts = [0] * n_points
+        for i, p in enumerate(at):
+            for t in set(int(t) for t in cover(i, *p)):
+                counts[t] += 1
+        return sum(c >= kk for c, kk in zip(counts, k))
+
+    for g in sorted(set(int(v) for v in labels)):
+        members = [i for i in range(n) if labels[i] == g]
+        spots = sorted({pos[i] for i in members})
+        if len(spots) == 1:
+            continue
+        anchors = sorted({pos[i] for i in members if still[i]})
+        best = None
+        for site in anchors or spots:
+            trial = [site if (i in members and not still[i]) else p for i, p in enumerate(pos)]
+            c = covered(trial)
+            if best is None or c > best[0]:
+                best = (c, trial)
+        if best[0] >= keep_at_least:
+            pos = best[1]
+    masts: dict = {}
+    final = [masts.setdefault((int(labels[i]), pos[i]), len(masts)) for i in range(n)]
+    return np.array(pos).reshape(-1, 2), final
+
+
+def test_sites_match_a_brute_force_recount():
+    """Random small cases: sensors on a 4 x 3 lattice (so groups share spots), random
+    groups, some sensors standing, points needing 1 to 3 sensors, each sensor's cover a
+    random set of points fixed by (sensor, x, y) and sometimes empty (as a list). The
+    plan and the masts equal the brute-force recount's (see _reference)."""
+    rng = np.random.default_rng(18)
+    for case in range(300):
+        n = int(rng.integers(1, 9))
+        n_points = int(rng.integers(1, 13))
+        xy = rng.integers(0, [4, 3], size=(n, 2)).astype(float)
+        # Groups numbered by their first member, as group_positions gives them.
+        first: dict[int, int] = {}
+        raw = rng.integers(0, max(1, n // 2), size=n)
+        labels = np.array([first.setdefault(int(v), len(first)) for v in raw])
+        need = rng.integers(1, 4, size=n_points).astype(np.int32) if case % 2 else None
+        fixed = rng.random(n) < 0.25 if case % 3 == 0 else None
+
+        def cover(i, x, y, case=case, n_points=n_points):
+            # hash() of numbers is not salted: the same set in every run.
+            r = np.random.default_rng(abs(hash((case, int(i), float(x), float(y)))) % 2**32)
+            return [int(t) for t in np.flatnonzero(r.random(n_points) < 0.45)]
+
+        keep = int(rng.integers(0, n_points + 1))
+        want_xy, want_masts = _reference(xy, labels, cover, n_points, keep, need, fixed)
+        got_xy, got_masts = choose_sites(xy, labels, cover, n_points, keep, need, fixed)
+        assert np.array_equal(got_xy, want_xy), (case, got_xy, want_xy)
+        assert got_masts.tolist() == want_masts, (case, got_masts, want_masts)
