@@ -146,12 +146,16 @@ def build_parser() -> argparse.ArgumentParser:
         "what",
         nargs="?",
         default="all",
-        choices=("all", "coverage", "optimize", "scaling", "bound", "xodr"),
+        choices=("all", "coverage", "optimize", "scaling", "bound", "xodr", "constants"),
         help="all (default): speed/accuracy, optimizer runs, stability, scaling, bounds, "
         "ES vs paper -> bench/results.json and charts; scaling, bound: that section only; "
-        "xodr: import and plan each OpenDRIVE file of tests/data/xodr -> bench/xodr.json",
+        "xodr: import and plan each OpenDRIVE file of tests/data/xodr -> bench/xodr.json; "
+        "constants: ES zeta and greedy mast preference swept on two_routes, full_ground "
+        "tiles and an OpenDRIVE scene -> bench/constants.json",
     )
-    bench.add_argument("--quick", action="store_true", help="all, scaling, bound: quicker")
+    bench.add_argument(
+        "--quick", action="store_true", help="all, scaling, bound, constants: quicker"
+    )
     bench.add_argument("--scene", default=str(SAMPLES / "two_routes.blend"))
     bench.add_argument("--poses", type=int, default=12, help="coverage: poses per method")
     bench.add_argument("--seed", type=int, default=0)

@@ -25,7 +25,11 @@ from headless.files import json_text, load_scene
 
 
 def main(args: argparse.Namespace) -> int:
-    """``bench [all|coverage|optimize|scaling|bound|xodr]``."""
+    """``bench [all|coverage|optimize|scaling|bound|xodr|constants]``."""
+    if args.what == "constants":
+        from headless.devtools import constants_bench
+
+        return constants_bench.run(args)
     if args.what == "xodr":
         from headless.devtools import xodr_bench
 
