@@ -378,11 +378,6 @@ def test_only_objects_within_the_foot_of_where_are_looked_at():
     assert standing_plans(site_scene(), shapely.box(-9.0, -3.0, -8.8, 5.0)) == {}
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="standing_plans narrows scene.ground_faces in place (use &= ... on the "
-    "scene's own array): each call marks the faces outside its region as overhangs",
-)
 def test_judging_sites_leaves_the_scene_alone():
     """A scene with an overhang has a ground_faces array; asking about one point must
     not change it, nor the answer to the next question (the crown stands whatever was

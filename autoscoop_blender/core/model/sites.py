@@ -102,7 +102,8 @@ def standing_plans(scene: SceneModel, where: BaseGeometry) -> dict[str, BaseGeom
     region = where.buffer(FOOT_M)
     tri = scene.vertices[scene.faces]
     plan = tri[:, :, :2]
-    use = np.ones(len(tri), dtype=bool) if scene.ground_faces is None else scene.ground_faces
+    # A copy: the scene's own array feeds its ground caster.
+    use = np.ones(len(tri), dtype=bool) if scene.ground_faces is None else scene.ground_faces.copy()
     minx, miny, maxx, maxy = region.bounds
     lo, hi = plan.min(axis=1), plan.max(axis=1)
     use &= (hi[:, 0] >= minx) & (lo[:, 0] <= maxx) & (hi[:, 1] >= miny) & (lo[:, 1] <= maxy)
