@@ -42,6 +42,7 @@ TESTS_FOR: dict[str, list[str]] = {
     # test_sites.py builds scenes from numpy boxes (no Blender): a run of seconds.
     "autoscoop_blender/core/model/sites.py": ["tests/core/test_sites.py"],
     "autoscoop_blender/core/candidates.py": [
+        "tests/core/test_candidates.py",
         "tests/core/test_optimize.py",
         "tests/core/test_lp.py",
         "tests/core/test_budget.py",
