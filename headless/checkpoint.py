@@ -53,18 +53,20 @@ def checkpoint_header(
     model: SensorModel,
     settings: OptimizeSettings,
     existing: Sequence[SensorSpec] = (),
+    existing_masts: Sequence[tuple[float, float]] = (),
 ) -> dict[str, Any]:
     """What a run's answer depends on: the scene (its fingerprint), model, settings
-    and the sensors that stand already (only when there are any, so that older
-    checkpoints still match)."""
+    and the sensors and masts that stand already (only when there are any, so that
+    older checkpoints still match)."""
     header = {
         "scene": scene.source,
         "scene_fingerprint": scene_fingerprint(scene),
         "model": model.to_dict(),
         "settings": settings.to_dict(),
     }
-    if existing:
+    if existing or existing_masts:
         header["existing"] = [s.to_dict() for s in existing]
+        header["existing_masts"] = [list(xy) for xy in existing_masts]
     return header
 
 
@@ -189,7 +191,8 @@ class Checkpoint:
             "a different model": header.get("model") != self.header["model"],
             "different settings": _settings(header.get("settings", {}))
             != _settings(self.header["settings"]),
-            "different existing sensors": header.get("existing") != self.header.get("existing"),
+            "different existing sensors": header.get("existing") != self.header.get("existing")
+            or header.get("existing_masts") != self.header.get("existing_masts"),
         }
         for what, differ in differs.items():
             if differ:

@@ -26,7 +26,7 @@ from autoscoop_blender.io.reports import (
     result_dict,
     sensors_csv,
 )
-from autoscoop_blender.io.sensor_file import read_sensors
+from autoscoop_blender.io.sensor_file import read_existing, read_sensors
 from headless.checkpoint import Checkpoint, checkpoint_header
 from headless.files import csv_text, json_text, load_scene, quiet_fds, write_files
 from headless.lock import OutDirLock
@@ -85,7 +85,7 @@ def optimize(args: argparse.Namespace) -> int:
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"{out_dir}: exists and is not a folder")
 
-    existing = read_sensors(args.existing) if args.existing else []
+    existing, existing_masts = read_existing(args.existing) if args.existing else ([], [])
     scene, make_caster = load_scene(args.scene or default_scene(), model.range_m)
     for w in scene.warnings:
         print(f"warning: {w}", file=sys.stderr)
@@ -97,11 +97,12 @@ def optimize(args: argparse.Namespace) -> int:
                 f"note: {out_dir}: took over the lock of run {lock.stale_pid}, which has ended",
                 file=sys.stderr,
             )
-        checkpoint = Checkpoint(out_dir, checkpoint_header(scene, model, settings, existing))
+        header = checkpoint_header(scene, model, settings, existing, existing_masts)
+        checkpoint = Checkpoint(out_dir, header)
         resume = checkpoint.resume(repair=args.repair) if args.resume else []
         run = Run(
             scene, make_caster, model, settings, resume, on_fixed=checkpoint.append,
-            workers=workers, existing=existing,
+            workers=workers, existing=existing, existing_masts=existing_masts,
         )  # fmt: skip
         if resume:
             print(f"resuming after {len(resume)} fixed sensor(s)", file=sys.stderr)
@@ -123,7 +124,7 @@ def optimize(args: argparse.Namespace) -> int:
         write_results(result, out_dir, render=args.render)
     m = result.metrics
     kept = ""
-    if existing:
+    if existing or existing_masts:
         kept = f" ({m['existing_sensors']} and {m['existing_masts']} of them existing)"
     print(
         f"{m['sensors']} sensors on {m['masts']} masts{kept} cover "

@@ -83,7 +83,8 @@ class SearchSpace:
     """Where a sensor may stand and how it may point.
 
     positions: (K, 2) the lattice points (spacing ``step_m``) inside the sensor areas
-    (local metres), plus one point for any area too small to hold a lattice point.
+    (local metres), plus one point for any area too small to hold a lattice point, plus
+    ``standing``: (M, 2) sites where a mast stands already (they may lie anywhere).
     Pitch in [pitch_min, pitch_max] degrees; yaw in [0, 360).
     """
 
@@ -93,6 +94,7 @@ class SearchSpace:
         step_m: float,
         pitch_min_deg: float,
         pitch_max_deg: float,
+        standing: F64 | None = None,
     ) -> None:
         self.step = float(step_m)
         self.pitch = (float(pitch_min_deg), float(pitch_max_deg))
@@ -108,8 +110,15 @@ class SearchSpace:
                 p = area.representative_point()
                 xy = np.array([[p.x, p.y]])
             parts.append(xy)
+        if standing is not None:
+            parts.append(np.asarray(standing, dtype=float).reshape(-1, 2))
         self.positions: F64 = np.unique(np.concatenate(parts), axis=0)
         self._index = {self._key(x, y): k for k, (x, y) in enumerate(self.positions)}
+        # (K,) True where a mast stands already: a new sensor there adds no mast.
+        self.standing = np.zeros(len(self.positions), dtype=bool)
+        if standing is not None and len(standing):
+            hit = (self.positions[:, None, :] == np.asarray(standing)[None]).all(axis=2)
+            self.standing = hit.any(axis=1)
 
     def _key(self, x: float, y: float) -> tuple[int, int]:
         return (int(round(x / self.step)), int(round(y / self.step)))
@@ -146,7 +155,8 @@ class Problem:
     validated here. ``min_density_per_m2`` in the settings overrides the model's.
     ``estimate``: what the run was estimated to need (``budget.Estimate``), with
     ``workers`` ES worker processes beside this one; InputError before anything is
-    allocated when it cannot go ahead.
+    allocated when it cannot go ahead. standing: (M, 2) local sites where masts stand
+    already, added to the search space (``SearchSpace.standing``).
     """
 
     def __init__(
@@ -156,6 +166,7 @@ class Problem:
         model: SensorModel,
         settings: OptimizeSettings,
         workers: int = 1,
+        standing: F64 | None = None,
     ) -> None:
         self.settings = settings = settings.validated()
         self.estimate = run_estimate(scene, model, settings, check=True, workers=workers)
@@ -176,7 +187,11 @@ class Problem:
         )
         step = settings.position_step_m or 2.0 * settings.grid_m
         self.space = SearchSpace(
-            [a.geometry for a in scene.sensor_areas], step, model.pitch_min_deg, model.pitch_max_deg
+            [a.geometry for a in scene.sensor_areas],
+            step,
+            model.pitch_min_deg,
+            model.pitch_max_deg,
+            standing,
         )
         # The demand: rho of the target points, each covered by its k sensors
         # (``need``). Every fixed sensor raises at least one point towards its k, so

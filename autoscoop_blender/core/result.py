@@ -155,7 +155,7 @@ class Provenance:
     fitness, epochs: per sensor (None: not optimized); evaluations, sight_rays: spent
     by the optimizer before the final evaluation; t0: ``time.perf_counter()`` when the
     work began (wall_s is measured from it). existing: per sensor, whether it stood
-    already (None: none did).
+    already (None: none did); standing: (M, 2) local sites where masts stood already.
     """
 
     t0: float
@@ -169,6 +169,7 @@ class Provenance:
     model: SensorModel | None = None
     bound: PlanBound | None = None
     existing: Sequence[bool] | None = None
+    standing: F64 | None = None
 
 
 def finish_layout(
@@ -224,10 +225,13 @@ def finish_layout(
                 existing=bool(how.existing[k]) if how.existing is not None else False,
             )
         )
+    # Local sites where masts stood already (compared in local metres, as placed).
+    stood = set() if how.standing is None else {(float(x), float(y)) for x, y in how.standing}
     masts = []
     for label in range(max(mast_of, default=-1) + 1):
         members = [s for s in sensors if s.mast == label]
         first = members[0]
+        foot = coverages[first.n - 1].pose
         masts.append(
             MastRecord(
                 n=label + 1,
@@ -236,7 +240,7 @@ def finish_layout(
                 z_ground=first.z - first.height_m,
                 height_m=max(s.height_m for s in members),
                 sensors=tuple(s.n for s in members),
-                existing=any(s.existing for s in members),
+                existing=any(s.existing for s in members) or (foot.x, foot.y) in stood,
             )
         )
     t_outline = time.perf_counter()

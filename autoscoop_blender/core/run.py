@@ -47,7 +47,9 @@ class Run:
     make_caster: builds the caster over the scene's occluders (worker processes call
     it too). existing: sensors that stand already (world metres, the run's model):
     they count toward coverage, are never moved or dropped, cost nothing, and their
-    masts carry new sensors for the sensor cost alone. resume: records of sensors
+    masts carry new sensors for the sensor cost alone. existing_masts: world (x, y)
+    of masts that stand with free slots: candidate sites where a new sensor adds no
+    mast. Both join the search space. resume: records of sensors
     fixed by an earlier run with the same inputs (as given to ``on_fixed``); the run
     goes on after the last of them. workers: processes that score each ES population
     (same answer).
@@ -63,9 +65,12 @@ class Run:
         on_fixed: Callable[[dict[str, Any]], None] | None = None,
         workers: int = 1,
         existing: Sequence[SensorSpec] = (),
+        existing_masts: Sequence[tuple[float, float]] = (),
     ) -> None:
         self.t0 = time.perf_counter()
-        self.problem = Problem(scene, make_caster(), model, settings, workers)
+        world = [(s.x, s.y) for s in existing] + list(existing_masts)
+        standing = scene.to_local(np.array(world, dtype=float).reshape(-1, 2))
+        self.problem = Problem(scene, make_caster(), model, settings, workers, standing)
         self.settings = self.problem.settings
         self.on_fixed = on_fixed
         self.solution = Solution(
@@ -238,6 +243,7 @@ class Run:
             model=p.model,
             bound=s.bound,
             existing=[f.existing for f in s.sensors],
+            standing=p.space.positions[p.space.standing],
         )
         return finish_layout(
             p.scene, p.grid, coverages, mast_of, how, p.probe.extra_rays, need=p.need

@@ -24,14 +24,17 @@ from ..core.errors import InputError
 from ..core.model.sensors import MAX_COORD_M, MAX_RANGE_M, SensorModel, SensorSpec
 from .reports import RESULT_SCHEMA
 
-TOP_KEYS = ("model", "sensors")
+TOP_KEYS = ("model", "sensors", "masts")
 SENSOR_KEYS = ("x", "y", "height_m", "pitch_deg", "yaw_deg", "model")
 # A result.json (``reports.result_dict``) is a sensors file too: besides ``model`` and
 # ``sensors`` it carries these keys, and these in each sensor, which are not read.
 RESULT_TOP_KEYS = (
     "schema", "scene", "optimizer", "method", "seed", "settings", "versions", "metrics",
-    "stop_reason", "uncovered", "no_mast_sites", "masts", "origin",
+    "stop_reason", "uncovered", "no_mast_sites", "origin",
 )  # fmt: skip
+# Masts that stand already (``read_existing``); a result.json's carry more keys.
+MAST_KEYS = ("x", "y")
+RESULT_MAST_KEYS = ("n", "z_ground", "height_m", "sensors", "existing")
 RESULT_SENSOR_KEYS = (
     "n", "z", "mast", "fitness", "epochs", "target_covered_m2", "footprint_m2", "existing",
 )  # fmt: skip
@@ -40,6 +43,33 @@ RESULT_SENSOR_KEYS = (
 def read_sensors(path: str | Path) -> list[SensorSpec]:
     """Parse a sensors file; InputError naming the file and entry for any fault."""
     p = Path(path)
+    return parse_sensors(_load(p), p.name)
+
+
+def read_existing(path: str | Path) -> tuple[list[SensorSpec], list[tuple[float, float]]]:
+    """What stands already, from a sensors file or a result.json: its sensors (the
+    list may be empty) and its ``masts`` (world x, y: sites with free slots, each
+    ``{"x": .., "y": ..}``; a result.json's masts are where its sensors stand)."""
+    p = Path(path)
+    data = _load(p)
+    specs = parse_sensors(data, p.name, allow_empty=True)
+    masts = []
+    items = data.get("masts", [])
+    if not isinstance(items, list):
+        raise InputError(f"{p.name}: 'masts' must be a list of objects with x and y")
+    for k, item in enumerate(items, start=1):
+        where = f"{p.name}: mast {k}"
+        if not isinstance(item, dict):
+            raise InputError(f"{where}: expected an object with x and y")
+        check_keys(item, MAST_KEYS + RESULT_MAST_KEYS, where, "mast")
+        masts.append((_coordinate(item, "x", where), _coordinate(item, "y", where)))
+    if not specs and not masts:
+        raise InputError(f"{p.name}: neither 'sensors' nor 'masts' lists anything")
+    return specs, masts
+
+
+def _load(p: Path) -> Any:
+    """The decoded JSON of a file; InputError naming the file for any fault."""
     if p.is_dir():
         raise InputError(f"{p}: is a directory, not a sensors file")
     if not p.is_file():
@@ -58,21 +88,22 @@ def read_sensors(path: str | Path) -> list[SensorSpec]:
         raise InputError(f"{p.name}: not valid JSON ({str(e).split(';')[0]})") from None
     except RecursionError:
         raise InputError(f"{p.name}: not valid JSON (nested too deeply)") from None
-    return parse_sensors(data, p.name)
+    return data
 
 
-def parse_sensors(data: Any, label: str) -> list[SensorSpec]:
+def parse_sensors(data: Any, label: str, allow_empty: bool = False) -> list[SensorSpec]:
     """Sensors from already-decoded JSON ``data``; ``label`` names it in errors.
 
     Unknown keys are refused with the closest known one (a misspelt ``heigth_m``
     would otherwise be ignored); a result.json's own keys are allowed in one.
+    allow_empty: an empty (or missing) ``sensors`` list is no error.
     """
     if not isinstance(data, dict):
         raise InputError(f"{label}: expected an object with 'model' and 'sensors'")
     is_result = data.get("schema") == RESULT_SCHEMA
     check_keys(data, TOP_KEYS + RESULT_TOP_KEYS if is_result else TOP_KEYS, label, "top-level")
-    items = data.get("sensors")
-    if not isinstance(items, list) or not items:
+    items = data.get("sensors", [] if allow_empty else None)
+    if not isinstance(items, list) or not (items or allow_empty):
         raise InputError(f"{label}: 'sensors' must be a non-empty list")
     default = SensorModel.from_spec(data["model"], f"{label}: model") if "model" in data else None
     sensor_keys = SENSOR_KEYS + RESULT_SENSOR_KEYS if is_result else SENSOR_KEYS

@@ -61,3 +61,31 @@ def test_a_checkpoint_made_without_them_is_refused(tmp_path, sensors_file):
     )  # fmt: skip
     assert code != 0
     assert "made with different existing sensors; run without --resume" in stderr
+
+
+def test_masts_with_free_slots_from_the_file(tmp_path, sensors_file):
+    """A file of masts alone (no sensor): each is a site where a new sensor adds no
+    mast, so the plan's masts there are flagged and cost nothing."""
+    scratch = _optimize(tmp_path / "scratch")
+    sites = [{"x": m["x"], "y": m["y"]} for m in scratch["masts"][:2]]
+    existing = sensors_file({"model": scratch["model"], "sensors": [], "masts": sites})
+    doc = _optimize(tmp_path / "plan", "--existing", existing)
+    assert doc["metrics"]["existing_sensors"] == 0
+    standing = [m for m in doc["masts"] if m["existing"]]
+    assert {(m["x"], m["y"]) for m in standing} <= {(s["x"], s["y"]) for s in sites}
+    assert doc["metrics"]["existing_masts"] == len(standing) >= 1
+    # greedy's cost counts only the masts it added.
+    new_masts = len(doc["masts"]) - len(standing)
+    settings = doc["settings"]
+    assert doc["metrics"]["cost"] == (
+        settings["mast_cost"] * new_masts + settings["sensor_cost"] * len(doc["sensors"])
+    )
+
+
+def test_a_mast_entry_without_y_is_refused_in_one_line(tmp_path, sensors_file):
+    existing = sensors_file({"sensors": [], "masts": [{"x": 1.0}]}, name="masts.json")
+    code, _, stderr = run_headless(
+        "optimize", SAMPLES / "flat_wall.blend", "--existing", existing, "--out-dir", tmp_path
+    )
+    assert code == 2
+    assert stderr.strip() == "error: masts.json: mast 1: missing y"

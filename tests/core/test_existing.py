@@ -85,3 +85,20 @@ def test_a_fixed_sensor_keeps_its_site_and_draws_the_others_to_it():
     new_xy, final = choose_sites(xy, labels, cover, 5, 5, fixed=np.array([True, True]))
     np.testing.assert_array_equal(new_xy, xy)
     assert final.tolist() == [0, 1]
+
+
+def test_a_standing_mast_with_free_slots_takes_the_new_sensor():
+    """A mast stands at (15, 5), off the 2 m lattice, with no sensor: a camera there
+    covers the 80 points the given two leave (x 9.2..20.8), as do lattice sites
+    14 and 16; greedy takes the standing mast, which adds no mast to the cost."""
+    settings = OptimizeSettings(optimizer="greedy", objective="cost", mast_cost=3.0)
+    scene = flat_scene(target=TARGET, sensor=(-1, -1, 31, 11))
+    run = Run(scene, box_caster(), DOWN, settings, existing=GIVEN, existing_masts=[(15.0, 5.0)])
+    res = run.result()
+    new = [s for s in res.sensors if not s.existing]
+    assert [(s.x, s.y) for s in new] == [(15.0, 5.0)]
+    assert [m.existing for m in res.masts] == [True, True, True]
+    assert res.metrics["cost"] == 1.0  # one sensor, no new mast
+    # Without the standing mast the same plan needs a new one: 3 + 1.
+    res = Run(scene, box_caster(), DOWN, settings, existing=GIVEN).result()
+    assert res.metrics["cost"] == 4.0

@@ -46,7 +46,7 @@ class Greedy:
             solution.stop_reason = StopReason.out_of_sight("candidate pose")
             return solution
         index = {(float(x), float(y)): i for i, (x, y) in enumerate(cands.positions)}
-        used = np.zeros(len(cands.positions), dtype=bool)
+        used = problem.space.standing.copy()  # masts that stand already are in use
         for s in solution.sensors:
             if (s.pose.x, s.pose.y) in index:
                 used[index[(s.pose.x, s.pose.y)]] = True
