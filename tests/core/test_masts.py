@@ -195,3 +195,32 @@ def test_sites_match_a_brute_force_recount():
         got_xy, got_masts = choose_sites(xy, labels, cover, n_points, keep, need, fixed)
         assert np.array_equal(got_xy, want_xy), (case, got_xy, want_xy)
         assert got_masts.tolist() == want_masts, (case, got_masts, want_masts)
+
+
+def test_a_group_of_standing_sensors_moves_nothing_and_counts_nothing():
+    """Group 0: A at 0 and B at 4, both standing (two masts 4 m apart: nothing can
+    move). Group 1: C at 10 and D at 13, free. Each covers the whole metres within 1 of
+    x: A 0..1, B 3..5, C 9..11, D 12..14: 11 points. C and D merged cover 3 points
+    instead of 6: 8 in all, under the 9 asked, so they stay apart; group 0 changes
+    nothing on the way (had it counted a point, the 9 would have been met)."""
+    xy = np.array([[0, 0], [4, 0], [10, 0], [13, 0]], float)
+
+    def cover(i, x, y):
+        return np.arange(max(0, int(x) - 1), min(23, int(x) + 2))
+
+    new_xy, final = choose_sites(
+        xy,
+        np.array([0, 0, 1, 1]),
+        cover,
+        n_points=23,
+        keep_at_least=9,
+        fixed=np.array([True, True, False, False]),
+    )
+    assert new_xy.tolist() == xy.tolist()
+    assert final.tolist() == [0, 1, 2, 3]
+    # Asked for 8, C and D merge on C's site (the first of two equal ones).
+    new_xy, final = choose_sites(
+        xy, np.array([0, 0, 1, 1]), cover, 23, 8, fixed=np.array([True, True, False, False])
+    )
+    assert new_xy.tolist() == [[0, 0], [4, 0], [10, 0], [10, 0]]
+    assert final.tolist() == [0, 1, 2, 2]
