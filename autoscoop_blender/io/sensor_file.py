@@ -2,11 +2,14 @@
 
     {"model": "paper_camera" | {model keys...},
      "sensors": [{"x": .., "y": .., "pitch_deg": .., "yaw_deg": ..,
-                  "height_m": .. (optional), "model": .. (optional)}, ...]}
+                  "height_m": .. (optional), "model": .. (optional)}, ...],
+     "masts": [{"x": .., "y": ..}, ...] (optional)}
 
 ``x``, ``y`` are world metres; ``height_m`` is the mast height above the ground under
 the sensor (default: the sensor area's ``height_m`` if it stands in one that has it,
-else the model's mount height); angles in degrees as in ``sensors``.
+else the model's mount height); angles in degrees as in ``sensors``. ``masts`` are
+read only where the file names what stands already (``read_existing``): masts with
+free slots.
 
 Every number must be finite: ``x``, ``y`` within ``MAX_COORD_M`` (10,000 km) of the
 origin, ``height_m`` in [0, ``MAX_RANGE_M``], ``pitch_deg`` in [-90, 90]. Any other
