@@ -13,7 +13,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -271,12 +271,8 @@ def finish_layout(
         # Existing sensors and masts cost nothing: the objective is the new ones'.
         new_sensors = sum(not s.existing for s in sensors)
         new_masts = sum(not m.existing for m in masts)
-        bound = how.bound
-        if bound is not None and any(m.existing for m in masts):
-            # New sensors may join existing masts at no mast cost, which the bound's
-            # candidate masts do not know: only "at least no new mast" holds.
-            bound = replace(bound, masts=0, cost_lp=0.0)
-        metrics.update(objective_metrics(new_sensors, new_masts, how.settings, bound))
+        # The bounds are on the new ones too: standing masts cost nothing there.
+        metrics.update(objective_metrics(new_sensors, new_masts, how.settings, how.bound))
         metrics.update(
             existing_sensors=len(sensors) - new_sensors, existing_masts=len(masts) - new_masts
         )

@@ -102,3 +102,18 @@ def test_a_standing_mast_with_free_slots_takes_the_new_sensor():
     # Without the standing mast the same plan needs a new one: 3 + 1.
     res = Run(scene, box_caster(), DOWN, settings, existing=GIVEN).result()
     assert res.metrics["cost"] == 4.0
+
+
+@pytest.mark.parametrize("optimizer", ["lp", "greedy"])
+def test_the_bound_knows_a_standing_mast_costs_nothing(optimizer):
+    """With the mast at (15, 5) standing, the cheapest plan adds one sensor there and
+    no mast: cost 1, and the proof says no plan costs less than 1."""
+    settings = OptimizeSettings(optimizer=optimizer, objective="cost", mast_cost=3.0, bound=True)
+    scene = flat_scene(target=TARGET, sensor=(-1, -1, 31, 11))
+    run = Run(scene, box_caster(), DOWN, settings, existing=GIVEN, existing_masts=[(15.0, 5.0)])
+    m = run.result().metrics
+    assert m["cost"] == 1.0
+    assert m["lower_bound"] == 1.0 and m["masts_lower_bound"] == 0
+    # Without it: one new mast and one sensor at least, 3 + 1.
+    m = Run(scene, box_caster(), DOWN, settings, existing=GIVEN).result().metrics
+    assert m["cost"] == 4.0 and m["lower_bound"] == 4.0

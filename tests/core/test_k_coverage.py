@@ -317,6 +317,7 @@ class HandProblem:
             model=np.zeros(n, dtype=np.int64),
             matrix=instance(rows, 8, self.goal).matrix,
         )
+        self.space = SimpleNamespace(standing=np.zeros(n, dtype=bool))  # no mast stands
 
     def reached(self, n_covered):
         return n_covered >= self.goal

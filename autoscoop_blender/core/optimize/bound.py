@@ -61,7 +61,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import sparse
 
-from .cover import CoverInstance
+from .cover import CoverInstance, MastCost, mast_cost_at
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
@@ -448,7 +448,9 @@ def split_cover_lp(
     )  # fmt: skip
 
 
-def mast_aware_bound(lp: LPSolution, site_of: I64, mast_cost: float, sensor_cost: float) -> float:
+def mast_aware_bound(
+    lp: LPSolution, site_of: I64, mast_cost: MastCost, sensor_cost: float
+) -> float:
     """A proven lower bound on the mast-aware LP (so on the cost of every plan) from
     the last duals of the sensors LP (solved with unit costs): scaled by the largest
     ``t`` for which every site ``s`` can share ``mast_cost`` out as the link duals its
@@ -459,11 +461,12 @@ def mast_aware_bound(lp: LPSolution, site_of: I64, mast_cost: float, sensor_cost
     if not np.isfinite(lp.value) or len(lp.priced) == 0 or sensor_cost <= 0 or lp.parts > 1:
         return 0.0
     value = lp.value if math.isnan(lp.dual) else lp.dual
-    n_sites = int(site_of.max()) + 1
+    n_sites = max(int(site_of.max()) + 1, int(np.size(mast_cost)))
+    per_site = mast_cost_at(mast_cost, np.arange(n_sites))
 
     def fits(t: float) -> bool:
         excess = np.maximum(0.0, sensor_cost * (t * lp.priced - 1.0))
-        return bool((np.bincount(site_of, weights=excess, minlength=n_sites) <= mast_cost).all())
+        return bool((np.bincount(site_of, weights=excess, minlength=n_sites) <= per_site).all())
 
     lo, hi = 0.0, 1.0
     while fits(hi) and hi < 1e6:  # the feasible t may exceed 1
@@ -492,12 +495,14 @@ def site_cover(
     deadline: float | None = None,
     stop: threading.Event | None = None,
     milp: bool = True,
+    standing: NDArray[np.bool_] | None = None,
 ) -> Generator[None, None, SiteSolution]:
     """The fewest sites (mast positions) whose candidates cover the goal: the LP
     relaxation, then, when ``milp``, the MILP over sites (see the module docstring);
     stops at ``deadline``, or when ``stop`` is set, with the bound proven so far and
     the best set found. Without the MILP the bound is the LP's rounded up and no set
-    is found.
+    is found. standing: (n_sites,) sites where a mast stands already: they cost
+    nothing, so the bound is on the new masts.
     """
     m = inst.matrix
     # Site s covers point n when any candidate at s does.
@@ -520,7 +525,8 @@ def site_cover(
         limit = None if deadline is None else deadline - time.perf_counter()
         h = _new_highs(limit)
         _cover_rows(h, n, inst.goal, need)
-        _add_columns(h, sites, np.ones(n_sites), 1.0, values)
+        weight = np.ones(n_sites) if standing is None else np.where(standing, 0.0, 1.0)
+        _add_columns(h, sites, weight, 1.0, values)
         return h
 
     h = model()
@@ -558,7 +564,7 @@ def sensors_on_sites(
     site_of: I64,
     sites: I64,
     start: list[int],
-    mast_cost: float,
+    mast_cost: MastCost,
     sensor_cost: float,
     deadline: float | None = None,
     stop: threading.Event | None = None,
@@ -581,7 +587,7 @@ def sensors_on_sites(
     _cover_rows(h, n, inst.goal, inst.k if inst.multi else None)
     _add_columns(h, inst.matrix[cols], np.full(n_cols, sensor_cost), 1.0)
     none = np.zeros(0, dtype=np.int32)
-    h.addCols(n_sites, np.full(n_sites, mast_cost), np.zeros(n_sites), np.ones(n_sites), 0,
+    h.addCols(n_sites, mast_cost_at(mast_cost, sites), np.zeros(n_sites), np.ones(n_sites), 0,
               np.zeros(n_sites, dtype=np.int32), none, np.zeros(0))  # fmt: skip
     # x_c - y_s <= 0, one row per candidate
     index = np.empty(2 * n_cols, dtype=np.int32)

@@ -114,17 +114,28 @@ class Cover:
         return int(np.count_nonzero(self.count[pts] == self.inst.k[pts]))
 
 
+# A mast cost: one for every site, or (S,) one per site (0 where a mast stands already).
+MastCost = float | NDArray[np.float64]
+
+
+def mast_cost_at(mast_cost: MastCost, sites: I64) -> NDArray[np.float64]:
+    """(len(sites),) the mast cost at each of ``sites``."""
+    if np.ndim(mast_cost) == 0:
+        return np.full(len(sites), float(mast_cost))
+    return np.asarray(mast_cost, dtype=float)[sites]
+
+
 def complete(
     cover: Cover,
     pool: I64,
     site_of: I64 | None = None,
-    mast_cost: float = 0.0,
+    mast_cost: MastCost = 0.0,
     sensor_cost: float = 1.0,
 ) -> Cover:
     """Add candidates of ``pool`` until the goal is met: each time the one covering
     the most uncovered points or, given each candidate's site (``site_of``, all
-    candidates), the most per cost: ``sensor_cost``, plus ``mast_cost`` at a site no
-    chosen candidate uses yet. Stops early when no candidate adds a point."""
+    candidates), the most per cost: ``sensor_cost``, plus the site's ``mast_cost`` at
+    a site no chosen candidate uses yet. Stops early when no candidate adds a point."""
     inst = cover.inst
     sub = inst.matrix[pool]
     by_point = sub.tocsc()
@@ -136,7 +147,7 @@ def complete(
         site = site_of[pool]
         used = np.isin(site, site_of[cover.chosen])
         # A free sensor on a mast in use is taken first; never divide by 0.
-        price = np.maximum(sensor_cost + mast_cost * ~used, 1e-9)
+        price = np.maximum(sensor_cost + mast_cost_at(mast_cost, site) * ~used, 1e-9)
     while cover.slack < 0 and len(pool):
         k = int(np.argmax(gains / price))
         if gains[k] <= 0:
@@ -153,7 +164,7 @@ def complete(
     return cover
 
 
-def close_sites(cover: Cover, site_of: I64, mast_cost: float, sensor_cost: float) -> Cover:
+def close_sites(cover: Cover, site_of: I64, mast_cost: MastCost, sensor_cost: float) -> Cover:
     """Close masts while that lowers the cost (``mast_cost`` per site in use plus
     ``sensor_cost`` per candidate): for each site in use, the one with the fewest
     candidates first, drop its candidates, cover the goal again from the candidates
@@ -162,7 +173,8 @@ def close_sites(cover: Cover, site_of: I64, mast_cost: float, sensor_cost: float
     inst = cover.inst
 
     def cost(c: Cover) -> float:
-        return mast_cost * len(np.unique(site_of[c.chosen])) + sensor_cost * len(c.chosen)
+        masts = mast_cost_at(mast_cost, np.unique(site_of[c.chosen])).sum()
+        return float(masts) + sensor_cost * len(c.chosen)
 
     best = cover
     closed = True

@@ -59,7 +59,7 @@ from .bound import (
     site_cover,
     split_cover_lp,
 )
-from .cover import Cover, CoverInstance, close_sites, complete, improve
+from .cover import Cover, CoverInstance, MastCost, close_sites, complete, improve
 
 I64 = NDArray[np.int64]
 
@@ -122,10 +122,17 @@ def bound_scope(cands: CandidateSet, problem: Problem) -> str:
 
 
 def plan_cost(
-    cands: CandidateSet, chosen: list[int], objective: str, mc: float, sc: float
+    cands: CandidateSet,
+    chosen: list[int],
+    objective: str,
+    mc: float,
+    sc: float,
+    standing: NDArray[np.bool_] | None = None,
 ) -> tuple[float, int]:
-    """(objective value, masts) of a plan of candidates, one mast per position used."""
-    masts = len(np.unique(cands.position[chosen])) if chosen else 0
+    """(objective value, new masts) of a plan of candidates: one mast per position
+    used, except where one stands already (``standing``, per position)."""
+    used = np.unique(cands.position[chosen]) if chosen else np.zeros(0, dtype=np.int64)
+    masts = len(used) if standing is None else int(np.count_nonzero(~standing[used]))
     if objective == "sensors":
         return float(len(chosen)), masts
     if objective == "masts":
@@ -156,15 +163,27 @@ def _both(
     return values[0], values[1]
 
 
-def mast_aware_costs(problem: Problem, n_candidates: int) -> tuple[float, float]:
+def mast_aware_costs(problem: Problem, n_candidates: int) -> tuple[MastCost, float]:
     """(mast, sensor) costs of the mast-aware MILP for the problem's objective; for
-    masts, one mast outweighs every sensor there is."""
+    masts, one mast outweighs every sensor there is. Where masts stand already, the
+    mast cost is per site, 0 on those."""
     s = problem.settings
     if s.objective == "sensors":
         return 0.0, 1.0
-    if s.objective == "masts":
-        return float(n_candidates + 1), 1.0
-    return s.mast_cost, s.sensor_cost
+    mast = float(n_candidates + 1) if s.objective == "masts" else s.mast_cost
+    sensor = 1.0 if s.objective == "masts" else s.sensor_cost
+    return _per_site(problem, mast), sensor
+
+
+def _per_site(problem: Problem, mast_cost: float) -> MastCost:
+    """``mast_cost``, or (sites,) with 0 where a mast stands already."""
+    standing = problem.space.standing
+    return np.where(standing, 0.0, mast_cost) if standing.any() else mast_cost
+
+
+def _standing(problem: Problem) -> NDArray[np.bool_] | None:
+    """(sites,) where masts stand already, or None when none does."""
+    return problem.space.standing if problem.space.standing.any() else None
 
 
 def masts_then_plan(
@@ -184,7 +203,7 @@ def masts_then_plan(
     when there is no plan. ``milp``: solve the fewest masts' MILP (else its LP
     only)."""
     sites = yield from site_cover(
-        inst, cands.position, len(cands.positions), deadline, stop, milp=milp
+        inst, cands.position, len(cands.positions), deadline, stop, milp, _standing(problem)
     )
     if not plan or (stop is not None and stop.is_set()):
         return sites, None
@@ -205,7 +224,9 @@ def masts_then_plan(
         return sites, None
     start = min(
         starts,
-        key=lambda c: plan_cost(cands, c.chosen, s.objective, s.mast_cost, s.sensor_cost)[0],
+        key=lambda c: plan_cost(
+            cands, c.chosen, s.objective, s.mast_cost, s.sensor_cost, _standing(problem)
+        )[0],
     )
     used = np.unique(site_of[start.chosen])
     cols = milp_candidates(inst, site_of, used, start.chosen)
@@ -246,7 +267,9 @@ def prove_bound(
     objective (sensor_cost x its bound for cost; nothing yet for masts)."""
     s = problem.settings
     greedy = complete(Cover(inst), np.arange(len(cands), dtype=np.int64))
-    best = plan_cost(cands, greedy.chosen, s.objective, s.mast_cost, s.sensor_cost)[0]
+    best = plan_cost(
+        cands, greedy.chosen, s.objective, s.mast_cost, s.sensor_cost, _standing(problem)
+    )[0]
     per_sensor = {"cost": s.sensor_cost, "sensors": 1.0}.get(s.objective)
     n_parts = 1 if inst.xy is None else math.ceil(inst.n_points / PART_POINTS)
     ones, initial = np.ones(len(cands)), np.array(greedy.chosen, dtype=np.int64)
@@ -288,7 +311,9 @@ def prove_and_plan(
     s = problem.settings
 
     def value(plan: list[int]) -> float:
-        return plan_cost(cands, plan, s.objective, s.mast_cost, s.sensor_cost)[0]
+        return plan_cost(
+            cands, plan, s.objective, s.mast_cost, s.sensor_cost, _standing(problem)
+        )[0]
 
     bound, lp, on_sites, greedy = yield from prove_bound(
         problem, cands, inst, solution, deadline, stop=stop, plan=True
@@ -304,9 +329,15 @@ def prove_and_plan(
 
 def bound_only(problem: Problem, solution: Solution) -> Generator[Progress, None, PlanBound]:
     """The lower bound of the whole problem, for a plan another optimizer made (the
-    ES's or greedy's, asked with ``bound = true``)."""
+    ES's or greedy's, asked with ``bound = true``), on what it adds to the sensors
+    that stood already."""
     cands = yield from candidates_of(problem, solution)
-    inst = instance(cands, problem, np.zeros(problem.n_targets, dtype=bool))
+    # What the sensors that stood already cover is not the plan's to cover.
+    counts = np.zeros(problem.n_targets, dtype=np.int32)
+    for f in solution.sensors:
+        if f.existing:
+            counts[f.newly if f.seen is None else f.seen] += 1
+    inst = instance(cands, problem, counts >= problem.need, counts)
     s = problem.settings
     deadline = None if s.time_limit_s is None else time.perf_counter() + s.time_limit_s
     bound, *_ = yield from prove_bound(problem, cands, inst, solution, deadline)
@@ -323,7 +354,9 @@ def _plan_bound(
         lp=lp.bound,
         scope=bound_scope(cands, problem),
         rounds=lp.rounds,
-        cost_lp=mast_aware_bound(lp, cands.position, s.mast_cost, s.sensor_cost),
+        cost_lp=mast_aware_bound(
+            lp, cands.position, _per_site(problem, s.mast_cost), s.sensor_cost
+        ),
     )
 
 
