@@ -116,5 +116,10 @@ def test_the_limit_is_the_most_nonzeros_allowed(monkeypatch):
     assert f": {budget.count_text(total)} after" in text
     assert "the candidate matrix at grid_m = 1 outgrew its estimate (" in text
     assert "through the greedy optimizer: raise grid_m" in text
-    monkeypatch.setattr(budget, "nonzero_limit", lambda optimizer: total)
+    # The limit is the one for the problem's optimizer (greedy here).
+    asked = []
+    monkeypatch.setattr(
+        budget, "nonzero_limit", lambda optimizer: asked.append(optimizer) or total
+    )
     assert built(p)[0].matrix.nnz == total
+    assert asked == ["greedy"]
