@@ -45,7 +45,8 @@ def test_existing_sensors_are_kept_flagged_and_added_to(tmp_path, sensors_file):
     rows = list(csv.DictReader((tmp_path / "plan" / "sensors.csv").open()))
     assert [r["existing"] for r in rows] == ["1" if s["existing"] else "0" for s in doc["sensors"]]
     geo = json.loads((tmp_path / "plan" / "sensors_local.geojson").read_text())
-    flags = [f["properties"]["existing"] for f in geo["features"] if f["properties"]["kind"] == "sensor"]
+    props = [f["properties"] for f in geo["features"]]
+    flags = [p["existing"] for p in props if p["kind"] == "sensor"]
     assert flags == [s["existing"] for s in doc["sensors"]]
     assert sum(m["existing"] for m in doc["masts"]) == doc["metrics"]["existing_masts"] >= 1
 

@@ -50,7 +50,7 @@ STEP_M = 0.2
 # radius. It also keeps every site off the exact edge of a wall, where a downward
 # ray may land on either the wall's top or the ground.
 FOOT_M = 0.25
-# Faces whose plan is thinner than this (walls' sides) have no top to stand on.
+# Faces whose plan covers less than this many m^2 (walls' sides) have no top to stand on.
 _MIN_PLAN_M2 = 1e-9
 
 
