@@ -513,3 +513,27 @@ def test_a_box_buried_elsewhere_does_not_lower_the_ground_under_a_kerb():
     culvert = ((-19.5, -9.5, -2.0), (-17.5, -7.5, -1.0))
     scene = scene_of({"Terrain": terrain(), "Kerb": [box(*KERB)], "Culvert": [box(*culvert)]})
     assert standing_plans(scene, shapely.box(*SENSOR)) == {}
+
+
+def test_a_culvert_under_the_terrain_does_not_make_the_terrain_stand():
+    """A box buried 1 to 2 m under the centroid (-20, 20) of a terrain triangle lies
+    wholly below the (larger) terrain: it is not the ground there, so the terrain
+    stays ground and nothing stands."""
+    culvert = ((-21.0, 19.0, -2.0), (-19.0, 21.0, -1.0))
+    scene = scene_of(
+        {"Terrain": terrain(), "Culvert": [box(*culvert)]}, sensors=((-30, 10, -10, 30),)
+    )
+    assert standing_plans(scene, shapely.box(-30, 10, -10, 30)) == {}
+
+
+def test_a_small_hut_on_a_mount_roof_stands():
+    """A 1 m x 1 m hut on the mount's roof covers neither roof triangle's centroid: the
+    roof is on top of nothing there, so the hut still stands (1 + 2 r 2 + pi r^2)."""
+    hut = ((-13.5, -8.5, 6.0), (-12.5, -7.5, 8.0))
+    scene = scene_of(
+        {"Terrain": terrain(), "Building": [box(*BUILDING)], "Hut": [box(*hut)]},
+        mounts=("Building",),
+    )
+    got = standing_plans(scene, shapely.box(*SENSOR))
+    assert set(got) == {"Hut"}
+    assert got["Hut"].area == pytest.approx(1.0 + 4 * FOOT_M + math.pi * FOOT_M**2, abs=2e-3)

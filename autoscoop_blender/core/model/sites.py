@@ -12,16 +12,18 @@ The rule, at a plan point (x, y), over the occluder faces that lie above it (ove
 - faces are grouped into *islands*, pieces of mesh joined by shared vertices (the
   terrain, one wall, one tree crown), so that objects merged into one mesh still
   count apart;
-- the *ground* is the lowest of the islands' top surfaces there. A wall sunk into
+- the *ground* is the lowest of the islands' top surfaces there, leaving out buried
+  islands (wholly below a larger one: a culvert under the terrain). A wall sunk into
   the terrain, or a building on it, tops out higher than the terrain does;
 - a face that rises more than ``STEP_M`` above the ground is *standing* there; a
   position within ``FOOT_M`` (in plan) of a standing face is no mast site;
 - faces of a mount object (``names.MOUNT_PROP``: a roof, a gantry, a bridge deck)
-  never stand: where one is the top surface, a mast stands on it.
+  never stand: where one is the top surface, a mast stands on it, over whatever
+  stands under it; what stands on a mount (a hut on a roof) still stands.
 
 Each face is judged at its centroid, so a face is standing or not as a whole; the
 no-site region is the union of the standing faces' plans, less where a mount face
-is on top, widened by ``FOOT_M``. Limits, said in the README: a building standing
+is on top of them, widened by ``FOOT_M``. Limits, said in the README: a building standing
 in a hole cut into the terrain mesh, or walls joined into the terrain mesh as one
 piece, read as ground, and a solid standing on nothing at all reads as a raised
 ground, since nothing lower lies under it to be the ground.
@@ -123,12 +125,7 @@ def standing_plans(scene: SceneModel, where: BaseGeometry) -> dict[str, BaseGeom
     centre = plan[faces].mean(axis=1)
     at, on = shapely.STRtree(polys).query(shapely.points(centre), predicate="intersects")
     z = _height_at(tri[faces[on]], centre[at])
-    # Per centroid: each island's top there, the lowest of them (the ground) and the
-    # highest face of all (the top surface).
-    top_of = _group_max(at * (int(island.max()) + 1) + island[on], z)
-    point_of = top_of[0] // (int(island.max()) + 1)
-    ground = np.full(len(faces), np.inf)
-    np.minimum.at(ground, point_of, top_of[1])
+    ground = _ground(at, island[on], z, _extent(plan[faces], island), len(faces))
     highest = np.full(len(faces), -np.inf)
     np.maximum.at(highest, at, z)
     own = np.empty(len(faces))
@@ -138,14 +135,61 @@ def standing_plans(scene: SceneModel, where: BaseGeometry) -> dict[str, BaseGeom
     standing = (own > ground + STEP_M) & ~mount
     if not standing.any():
         return {}
+    # A mount on top carries the mast over what stands under it (a pillar under a
+    # deck), not over what stands on it (a hut on a roof).
     on_mount = shapely.union_all(polys[mount & (own >= highest - 1e-6)])
+    under = np.zeros(len(faces), dtype=bool)
+    under[at[mount[on] & (z > own[at] + 1e-6)]] = True
     out: dict[str, BaseGeometry] = {}
     owner = scene.face_object[faces]
     for obj in np.unique(owner[standing]):
-        plan_of = shapely.union_all(polys[standing & (owner == obj)]).difference(on_mount)
+        mine = standing & (owner == obj)
+        plan_of = shapely.union_all(
+            [
+                shapely.union_all(polys[mine & ~under]),
+                shapely.union_all(polys[mine & under]).difference(on_mount),
+            ]
+        )
         if plan_of.area > 1e-6:
             out[scene.occluders[int(obj)]] = plan_of.buffer(FOOT_M)
     return out
+
+
+def _ground(
+    point: NDArray[np.int64], island: NDArray[np.int64], z: F64, extent: F64, n: int
+) -> F64:
+    """(n,) the ground at each of n points, from the faces over them: ``point``,
+    ``island`` and ``z`` per (point, face) pair; extent: (islands,) plan size.
+
+    The ground is the lowest top of the islands there, leaving out buried ones: an
+    island that lies wholly below a larger one (a culvert under the terrain). A
+    smaller one wholly above (a tree crown over the terrain) buries nothing."""
+    width = int(island.max()) + 1
+    keys, top = _group_max(point * width + island, z)
+    _, low = _group_max(point * width + island, -z)
+    bottom = -low
+    at, isl = keys // width, keys % width
+    # Every pair (r, s) of islands over the same point (keys are sorted by point).
+    first = np.searchsorted(at, at, side="left")
+    size = np.searchsorted(at, at, side="right") - first
+    r = np.repeat(np.arange(len(at)), size)
+    s = first[r] + np.arange(len(r)) - np.repeat(np.cumsum(size) - size, size)
+    buried = np.zeros(len(at), dtype=bool)
+    buried[r[(top[r] < bottom[s] - 1e-6) & (extent[isl[s]] > extent[isl[r]])]] = True
+    ground = np.full(n, np.inf)
+    np.minimum.at(ground, at[~buried], top[~buried])
+    return ground
+
+
+def _extent(plan: F64, island: NDArray[np.int64]) -> F64:
+    """(islands,) plan area of each island's bounding box, m^2, from its faces (F, 3, 2)."""
+    width = int(island.max()) + 1
+    lo = np.full((width, 2), np.inf)
+    hi = np.full((width, 2), -np.inf)
+    np.minimum.at(lo, island, plan.min(axis=1))
+    np.maximum.at(hi, island, plan.max(axis=1))
+    size = np.where(np.isfinite(hi - lo), hi - lo, 0.0)
+    return size[:, 0] * size[:, 1]
 
 
 def _mount_ids(scene: SceneModel) -> NDArray[np.int64]:
