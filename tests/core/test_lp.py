@@ -13,6 +13,7 @@ from autoscoop_blender.core.model.scene import Area, SceneModel
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA
 from autoscoop_blender.core.optimize import lp as lp_module
 from autoscoop_blender.core.optimize.bound import (
+    best_scale,
     combined_bound,
     cover_lp,
     mast_aware_bound,
@@ -221,6 +222,29 @@ def test_mast_aware_bound_beats_the_sensors_lp_when_masts_are_dear():
     lp = drain(cover_lp(inst, np.ones(2), group, np.arange(1), integral=False))
     assert lp.value == pytest.approx(2.0)
     assert mast_aware_bound(lp, group, 3.0, 1.0) == pytest.approx(8.0, rel=1e-5)
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_any_duals_at_their_best_scale_bound_the_lp(seed):
+    """Duals that are not the LP's (random, >= 0), scaled by ``best_scale``'s t, stay
+    below the LP's value, and above the bound at any other scale: Farley's (where no
+    candidate pays), 1 (the plain Lagrangian) and a grid, up to the float32 prices'
+    round-off in where the peak is; what the candidates pay is the exact sum."""
+    rng = np.random.default_rng(400 + seed)
+    inst = random_instance(rng, n_cand=12, n_points=20)
+    cost = rng.uniform(0.5, 2.0, 12)
+    lp = drain(cover_lp(inst, cost, np.arange(12), np.arange(1), integral=False))
+    sigma = rng.uniform(0.2, 1.0)
+    duals = sigma * rng.uniform(0.5, 1.5, 20)
+    total = inst.goal * sigma - float(np.maximum(0.0, sigma - duals).sum())
+    priced = np.asarray(inst.matrix @ duals.astype(np.float32), dtype=float)
+    t, paid = best_scale(total, priced, cost, inst.matrix, duals)
+    exact = inst.matrix @ duals
+    assert paid == pytest.approx(np.maximum(0.0, t * exact - cost).sum(), abs=1e-12)
+    assert t * total - paid <= lp.value + 1e-9
+    farley = min(1.0, float(np.min(cost[exact > 0] / exact[exact > 0])))
+    for s in [farley, 1.0, *np.linspace(0.0, 3.0, 61)]:
+        assert t * total - paid >= s * total - np.maximum(0.0, s * exact - cost).sum() - 1e-6
 
 
 def test_an_early_stop_keeps_a_proven_bound():
