@@ -31,7 +31,7 @@ from typing import Any
 
 from autoscoop_blender.core.settings import FitnessParams, OptimizeSettings
 from headless.devtools.machine import machine_line
-from headless.devtools.suite import MODEL, _in_fresh_process, _peak_rss_mb
+from headless.devtools.suite import MODEL, _in_fresh_process, _peak_rss_mb, only_tiles
 from headless.files import json_text
 from headless.paths import REPO, SAMPLES
 
@@ -133,13 +133,7 @@ def _point(
         # the settings do and this changes nothing.
         greedy.MAST_PREFERENCE = value
     scene, _ = load_scene(blend)
-    if tiles:
-        keep = {f"_T{t:02d}_" for t in tiles}
-        scene = replace(
-            scene,
-            targets=tuple(a for a in scene.targets if any(k in a.name for k in keep)),
-            sensor_areas=tuple(a for a in scene.sensor_areas if any(k in a.name for k in keep)),
-        )
+    scene = only_tiles(scene, tiles)
     scene = scene.cropped(MODEL.range_m)
     cpu = time.process_time()
     res = Run(scene, BVHFactory.of(scene), MODEL, settings).result()

@@ -588,18 +588,25 @@ def _in_fresh_process(fn, *args):
         return pool.submit(fn, *args).result()
 
 
+def only_tiles(scene: Any, tiles: tuple[int, ...]) -> Any:
+    """The scene's targets and sensor areas of full_ground's ``tiles`` only (all when
+    none are named): their curves' names hold ``_Tnn_``."""
+    if not tiles:
+        return scene
+    keep = {f"_T{t:02d}_" for t in tiles}
+    return replace(
+        scene,
+        targets=tuple(a for a in scene.targets if any(k in a.name for k in keep)),
+        sensor_areas=tuple(a for a in scene.sensor_areas if any(k in a.name for k in keep)),
+    )
+
+
 def _bound_point(scene_name: str, tiles: tuple[int, ...], name: str) -> dict[str, Any]:
     from autoscoop_blender.scene.factory import BVHFactory, forget_blender_script_paths
 
     forget_blender_script_paths()  # a spawned child: the pip bpy must win
     scene, _ = load_scene(str(SAMPLES / f"{scene_name}.blend"))
-    if tiles:
-        keep = {f"_T{t:02d}_" for t in tiles}
-        scene = replace(
-            scene,
-            targets=tuple(a for a in scene.targets if any(k in a.name for k in keep)),
-            sensor_areas=tuple(a for a in scene.sensor_areas if any(k in a.name for k in keep)),
-        )
+    scene = only_tiles(scene, tiles)
     scene = scene.cropped(MODEL.range_m)
     settings = BOUND_RUNS[name]
     run = Run(scene, BVHFactory.of(scene), MODEL, settings)

@@ -83,7 +83,7 @@ def terrain(z=lambda x, y: 0.0):
     return [plane(-60, -60, 60, 60, z)]
 
 
-def site_scene():
+def site_scene(no_mast=()):
     """The terrain, and one of each kind of object, in a 16 m x 20 m sensor area."""
     return scene_of(
         {
@@ -97,6 +97,7 @@ def site_scene():
         },
         mounts=("Building",),
         overhangs=("Canopy",),
+        no_mast=no_mast,
     )
 
 
@@ -239,20 +240,7 @@ def test_on_a_sloping_terrain_the_step_is_measured_from_the_terrain_below():
 
 
 def test_site_blockers_name_what_keeps_a_mast_off_each_point():
-    scene = scene_of(
-        {
-            "Terrain": terrain(),
-            "Wall": [box(*WALL)],
-            "GuardWall": [box(*GUARD_WALL)],
-            "Crown": [box(*CROWN)],
-            "Kerb": [box(*KERB)],
-            "Building": [box(*BUILDING)],
-            "Canopy": [box(*CANOPY)],
-        },
-        mounts=("Building",),
-        overhangs=("Canopy",),
-        no_mast=(("NoMast_Gate", (-19.5, 7.5, -16.5, 9.5)),),
-    )
+    scene = site_scene(no_mast=(("NoMast_Gate", (-19.5, 7.5, -16.5, 9.5)),))
     points = {
         (-15.0, 0.0): "Wall",  # on it
         (-14.3, 0.0): "Wall",  # 0.2 m east of its east face: within FOOT_M
