@@ -29,7 +29,7 @@ import numpy as np
 
 from autoscoop_blender.core.errors import InputError
 from autoscoop_blender.core.model.scene import SceneModel
-from autoscoop_blender.core.model.sensors import SensorModel, SensorSpec
+from autoscoop_blender.core.model.sensors import SensorModel, SensorPack, SensorSpec
 from autoscoop_blender.core.settings import OptimizeSettings, from_mapping
 
 NAME = "checkpoint.jsonl"
@@ -50,20 +50,23 @@ def scene_fingerprint(scene: SceneModel) -> str:
 
 def checkpoint_header(
     scene: SceneModel,
-    model: SensorModel,
+    model: SensorModel | SensorPack,
     settings: OptimizeSettings,
     existing: Sequence[SensorSpec] = (),
     existing_masts: Sequence[tuple[float, float]] = (),
 ) -> dict[str, Any]:
-    """What a run's answer depends on: the scene (its fingerprint), model, settings
-    and the sensors and masts that stand already (only when there are any, so that
-    older checkpoints still match)."""
-    header = {
+    """What a run's answer depends on: the scene (its fingerprint), model (or mixed
+    pack: ``models``), settings and the sensors and masts that stand already (only
+    when there are any, so that older checkpoints still match)."""
+    header: dict[str, Any] = {
         "scene": scene.source,
         "scene_fingerprint": scene_fingerprint(scene),
-        "model": model.to_dict(),
-        "settings": settings.to_dict(),
     }
+    if isinstance(model, SensorPack):
+        header["models"] = model.to_list(settings.sensor_cost)
+    else:
+        header["model"] = model.to_dict()
+    header["settings"] = settings.to_dict()
     if existing or existing_masts:
         header["existing"] = [s.to_dict() for s in existing]
         header["existing_masts"] = [list(xy) for xy in existing_masts]
@@ -188,7 +191,8 @@ class Checkpoint:
         differs = {
             "a different scene": header.get("scene_fingerprint")
             != self.header["scene_fingerprint"],
-            "a different model": header.get("model") != self.header["model"],
+            "a different model": header.get("model") != self.header.get("model")
+            or header.get("models") != self.header.get("models"),
             "different settings": _settings(header.get("settings", {}))
             != _settings(self.header["settings"]),
             "different existing sensors": header.get("existing") != self.header.get("existing")

@@ -13,6 +13,7 @@ from typing import Any
 
 from autoscoop_blender.core.errors import AutoscoopError, InputError
 from autoscoop_blender.core.evaluate import evaluate_layout
+from autoscoop_blender.core.model.sensors import SensorPack
 from autoscoop_blender.core.result import Result
 from autoscoop_blender.core.run import Run
 from autoscoop_blender.core.settings import CoverageSettings, OptimizeSettings, flag_values
@@ -86,7 +87,8 @@ def optimize(args: argparse.Namespace) -> int:
         raise InputError(f"{out_dir}: exists and is not a folder")
 
     existing, existing_masts = read_existing(args.existing) if args.existing else ([], [])
-    scene, make_caster = load_scene(args.scene or default_scene(), model.range_m)
+    reach = max(m.range_m for m in SensorPack.of(model).models)
+    scene, make_caster = load_scene(args.scene or default_scene(), reach)
     for w in scene.warnings:
         print(f"warning: {w}", file=sys.stderr)
     for e in scene.excluded:

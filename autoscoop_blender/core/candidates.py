@@ -61,20 +61,21 @@ class CandidateSet:
         return len(self.position)
 
     def pose(self, problem: Problem, c: int) -> SensorPose:
-        """Candidate ``c`` as a pose on its mast."""
+        """Candidate ``c`` as a pose on its mast (at its model's height)."""
         x, y = self.positions[self.position[c]]
         pitch, yaw = self.angles[self.model[c]][self.orientation[c]]
-        return problem.pose(x, y, pitch, yaw)
+        return problem.pose(x, y, pitch, yaw, int(self.model[c]))
 
 
 def build_candidates(problem: Problem) -> Generator[int, None, CandidateSet]:
-    """The problem's candidate set (see the module docstring); yields the number of
-    positions done every ``POSITIONS_PER_REPORT`` positions. Built once per problem:
+    """The problem's candidate set (see the module docstring), every model of the
+    problem's pack in turn; yields the number of (model, position) pairs done every
+    ``POSITIONS_PER_REPORT`` positions. Built once per problem:
     later calls return the same set (``Problem.candidates``)."""
     if problem.candidates is not None:
         cached: CandidateSet = problem.candidates
         return cached
-    models = (problem.model,)
+    models = problem.models
     positions = problem.space.positions
     angles = tuple(orientations(m.pitch_min_deg, m.pitch_max_deg) for m in models)
     limit = budget.nonzero_limit(problem.settings.optimizer)
@@ -84,10 +85,11 @@ def build_candidates(problem: Problem) -> Generator[int, None, CandidateSet]:
     cand_pos: list[int] = []
     cand_ori: list[int] = []
     cand_model: list[int] = []
+    total = len(positions) * len(models)  # (position, model) pairs to go through
     for m, (model, ang) in enumerate(zip(models, angles)):
         rots = np.array([frame(p, y) for p, y in ang])
         for i, (x, y) in enumerate(positions):
-            pose = problem.pose(x, y, ang[0, 0], ang[0, 1])
+            pose = problem.pose(x, y, ang[0, 0], ang[0, 1], m)
             covered, ordinal = problem.probe.cover_many(model, pose, rots)
             ordinal32 = ordinal.astype(np.int32)
             for o in np.flatnonzero(covered.any(axis=1)):
@@ -97,9 +99,10 @@ def build_candidates(problem: Problem) -> Generator[int, None, CandidateSet]:
                 cand_model.append(m)
             nonzeros += int(np.count_nonzero(covered))
             if nonzeros > limit:
-                raise InputError(_outgrown(problem, nonzeros, i + 1, len(positions), limit))
+                done = m * len(positions) + i + 1
+                raise InputError(_outgrown(problem, nonzeros, done, total, limit))
             if i % POSITIONS_PER_REPORT == 0:
-                yield i
+                yield m * len(positions) + i
     counts = [len(c) for c in cols]
     matrix = sparse.csr_matrix(
         (
@@ -119,6 +122,15 @@ def build_candidates(problem: Problem) -> Generator[int, None, CandidateSet]:
         matrix=matrix,
     )
     return problem.candidates
+
+
+def sensor_price(problem: Problem, cands: CandidateSet) -> float | F64:
+    """What one sensor costs in the ``cost`` objective: one number when every model
+    of the problem's pack costs the same, else (C,) each candidate's model's cost."""
+    costs = problem.sensor_costs
+    if np.all(costs == costs[0]):
+        return float(costs[0])
+    return costs[cands.model]
 
 
 def _outgrown(problem: Problem, nonzeros: int, done: int, total: int, limit: int) -> str:

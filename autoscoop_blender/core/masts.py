@@ -46,6 +46,7 @@ def choose_sites(
     keep_at_least: int,
     need: NDArray[np.int32] | None = None,
     fixed: NDArray[np.bool_] | None = None,
+    cap: int | None = None,
 ) -> tuple[F64, NDArray[np.int_]]:
     """Mast sites for grouped sensors.
 
@@ -53,7 +54,8 @@ def choose_sites(
     target points (distinct indices below ``n_points``) sensor i covers when it
     stands at (x, y); need: (n_points,) sensors each point needs to count as covered
     (None: 1); fixed: (n,) sensors that may not move (masts that stand already): a
-    group with one takes its site, if any. Returns the sensors' new positions (n, 2)
+    group with one takes its site, if any; cap: the most sensors one mast may carry:
+    a larger group is not merged. Returns the sensors' new positions (n, 2)
     and their final mast labels (one mast per distinct position in a group: a group
     that cannot merge without losing coverage below ``keep_at_least`` is split).
 
@@ -75,30 +77,51 @@ def choose_sites(
         members = np.flatnonzero(labels == g)
         if len(np.unique(current[members], axis=0)) == 1:
             continue
-        anchored = members[still[members]]
-        sites = np.unique(current[anchored if len(anchored) else members], axis=0)
-        # (covered, site, {moved sensor: its new cover})
-        best: tuple[int, F64 | None, dict[int, NDArray[np.int64]]] = (-1, None, {})
-        for site in sites:
-            moved = [m for m in members if not still[m] and not np.array_equal(current[m], site)]
-            new = {m: np.asarray(cover(m, *site), dtype=np.int64) for m in moved}
-            after = covered + _gain(counts, [covers[m] for m in moved], list(new.values()), k)
-            if after > best[0]:
-                best = (after, site, new)
-        after, site, new = best
-        if after >= keep_at_least:
-            for m, c in new.items():
-                counts[covers[m]] -= 1
-                counts[c] += 1
-                covers[m] = c
-                current[m] = site
-            covered = after
+        if cap is None or len(members) <= cap:  # a larger group would overload a mast
+            covered = _merge(members, current, still, covers, counts, covered, k, cover,
+                             keep_at_least)  # fmt: skip
         # One mast per distinct position left in the group.
         for spot in np.unique(current[members], axis=0)[1:]:
             at = members[np.all(current[members] == spot, axis=1)]
             final[at] = next_label
             next_label += 1
     return current, _renumber(final)
+
+
+def _merge(
+    members: NDArray[np.int_],
+    current: F64,
+    still: NDArray[np.bool_],
+    covers: list[NDArray[np.int64]],
+    counts: NDArray[np.int32],
+    covered: int,
+    k: NDArray[np.int32],
+    cover: Callable[[int, float, float], NDArray[np.int_]],
+    keep_at_least: int,
+) -> int:
+    """Move a group's ``members`` to the one site of theirs (an anchored member's,
+    if any) that keeps the most points covered, when that keeps at least
+    ``keep_at_least``; ``current``, ``covers`` and ``counts`` are updated in place.
+    Returns the points covered to their k after it."""
+    anchored = members[still[members]]
+    sites = np.unique(current[anchored if len(anchored) else members], axis=0)
+    # (covered, site, {moved sensor: its new cover})
+    best: tuple[int, F64 | None, dict[int, NDArray[np.int64]]] = (-1, None, {})
+    for site in sites:
+        moved = [m for m in members if not still[m] and not np.array_equal(current[m], site)]
+        new = {m: np.asarray(cover(m, *site), dtype=np.int64) for m in moved}
+        after = covered + _gain(counts, [covers[m] for m in moved], list(new.values()), k)
+        if after > best[0]:
+            best = (after, site, new)
+    after, site, new = best
+    if after < keep_at_least:
+        return covered
+    for m, c in new.items():
+        counts[covers[m]] -= 1
+        counts[c] += 1
+        covers[m] = c
+        current[m] = site
+    return after
 
 
 def _gain(counts: NDArray[np.int32], old: list, new: list, need: NDArray[np.int32]) -> int:

@@ -28,10 +28,11 @@ from .coverage.base import SensorCoverage
 from .coverage.cached import CachedTargetedEvaluator
 from .coverage.evaluator import Evaluator, make_evaluator
 from .coverage.pointcloud import auto_oversample
+from .errors import InputError
 from .geom.grid import GridArrays, GroundGrid
 from .geom.raycast import RayCaster
 from .model.scene import SceneModel
-from .model.sensors import SensorModel, SensorPose
+from .model.sensors import SensorModel, SensorPack, SensorPose
 from .settings import OptimizeSettings
 
 F64 = NDArray[np.float64]
@@ -149,10 +150,14 @@ class WorkerInputs:
 
 
 class Problem:
-    """One scene, one sensor model, one set of settings: see the module docstring.
+    """One scene, one sensor model or a pack of them, one set of settings: see the
+    module docstring.
 
-    scene: local metres; caster: casts against the scene's occluders; settings are
-    validated here. ``min_density_per_m2`` in the settings overrides the model's.
+    scene: local metres; caster: casts against the scene's occluders; model: a model,
+    or a ``SensorPack`` of models a plan may mix (``models``, the first also
+    ``model``: the one the ES plans), each sensor of model m costing
+    ``sensor_costs[m]``; settings are validated here. ``min_density_per_m2`` in the
+    settings overrides every model's.
     ``estimate``: what the run was estimated to need (``budget.Estimate``), with
     ``workers`` ES worker processes beside this one; InputError before anything is
     allocated when it cannot go ahead. standing: (M, 2) local sites where masts stand
@@ -163,19 +168,35 @@ class Problem:
         self,
         scene: SceneModel,
         caster: RayCaster,
-        model: SensorModel,
+        model: SensorModel | SensorPack,
         settings: OptimizeSettings,
         workers: int = 1,
         standing: F64 | None = None,
     ) -> None:
         self.settings = settings = settings.validated()
-        self.estimate = run_estimate(scene, model, settings, check=True, workers=workers)
+        pack = SensorPack.of(model)
+        if pack.mixed and settings.optimizer == "es":
+            raise InputError(
+                "the es optimizer plans one sensor model; a mixed pack needs "
+                "--optimizer greedy or lp"
+            )
+        # Each model's run is checked; the candidate build stops cleanly should their
+        # sum outgrow the machine (``candidates.build_candidates``).
+        estimates = [run_estimate(scene, m, settings, True, workers) for m in pack.models]
+        self.estimate = estimates[0]
         if settings.min_density_per_m2 is not None:
-            model = replace(model, min_density_per_m2=settings.min_density_per_m2)
+            density = settings.min_density_per_m2
+            models = tuple(replace(m, min_density_per_m2=density) for m in pack.models)
+            pack = replace(pack, models=models)
         self.scene = scene
-        self.model = model
+        self.models: tuple[SensorModel, ...] = pack.models
+        self.model = pack.models[0]
+        self.pack = pack
+        # (M,) the cost of one sensor of each model, in the units of mast_cost.
+        self.sensor_costs = pack.cost_of(settings.sensor_cost)
+        reach = max(m.range_m for m in pack.models)
         self.grid = GroundGrid(
-            scene, caster, settings.grid_m, settings.target_height_m, model.range_m, check=False
+            scene, caster, settings.grid_m, settings.target_height_m, reach, check=False
         )
         self.evaluator: Evaluator = make_evaluator(settings, self.grid, caster, settings.cache)
         # Rays to uncovered points, candidate sets and the proof that a gap cannot be
@@ -189,8 +210,8 @@ class Problem:
         self.space = SearchSpace(
             [a.geometry for a in scene.sensor_areas],
             step,
-            model.pitch_min_deg,
-            model.pitch_max_deg,
+            self.model.pitch_min_deg,
+            self.model.pitch_max_deg,
             standing,
         )
         # The demand: rho of the target points, each covered by its k sensors
@@ -201,7 +222,7 @@ class Problem:
         self.k_max = int(self.need.max()) if len(self.need) else 1
         self.goal = math.ceil(settings.rho * self.grid.n_targets)
         self.max_sensors = settings.max_sensors or self.grid.n_targets * self.k_max
-        self._mast: dict[tuple[float, float], tuple[float, float]] = {}
+        self._mast: dict[tuple[float, float, int], tuple[float, float]] = {}
         # The candidate set, once someone built it (``candidates.build_candidates``).
         self.candidates: Any = None
 
@@ -214,37 +235,46 @@ class Problem:
         return n_covered >= self.goal
 
     # --- poses -------------------------------------------------------------------
-    def height_at(self, x: float, y: float) -> float:
-        """Mast height at local (x, y): the sensor area's ``height_m``, else the model's."""
+    def height_at(self, x: float, y: float, model: int = 0) -> float:
+        """Sensor height on a mast at local (x, y): the sensor area's ``height_m``,
+        else the mount height of model ``model`` (an index into ``models``)."""
         for area in self.scene.sensor_areas:
             if area.height_m is not None and shapely.intersects_xy(area.geometry, x, y):
                 return area.height_m
-        return self.model.mount_height_m
+        return self.models[model].mount_height_m
 
-    def pose(self, x: float, y: float, pitch: float, yaw: float) -> SensorPose:
-        """The pose at local (x, y) on its mast (ground and height looked up once)."""
-        key = (float(x), float(y))
+    def pose(self, x: float, y: float, pitch: float, yaw: float, model: int = 0) -> SensorPose:
+        """The pose of a sensor of model ``model`` at local (x, y) on its mast (ground
+        and height looked up once)."""
+        key = (float(x), float(y), int(model))
         if key not in self._mast:
             height = self.height_at(*key)
-            ground = float(self.grid.ground_z(np.array([key]))[0])
+            ground = float(self.grid.ground_z(np.array([key[:2]]))[0])
             self._mast[key] = (ground + height, height)
         z, height = self._mast[key]
         return SensorPose(key[0], key[1], z, height, float(pitch), float(yaw))
 
-    def evaluate(self, pose: SensorPose, band_m: float | None = None) -> SensorCoverage:
-        """Coverage of ``pose`` by the problem's method, with footprint cells outside
-        the targets within ``band_m`` (see ``coverage.base``)."""
-        return self.evaluator.evaluate(self.model, pose, outside_band_m=band_m)
+    def evaluate(
+        self, pose: SensorPose, band_m: float | None = None, model: int = 0
+    ) -> SensorCoverage:
+        """Coverage of ``pose`` by a sensor of model ``model`` with the problem's method,
+        with footprint cells outside the targets within ``band_m`` (``coverage.base``)."""
+        return self.evaluator.evaluate(self.models[model], pose, outside_band_m=band_m)
 
-    def evaluate_full(self, pose: SensorPose) -> SensorCoverage:
-        """Coverage of ``pose`` with its whole footprint and its line of sight, as a
-        result reports it."""
-        return self.evaluator.evaluate(self.model, pose, outside_band_m=math.inf, visibility=True)
+    def evaluate_full(self, pose: SensorPose, model: int = 0) -> SensorCoverage:
+        """Coverage of ``pose`` (model ``model``) with its whole footprint and its line
+        of sight, as a result reports it."""
+        return self.evaluator.evaluate(
+            self.models[model], pose, outside_band_m=math.inf, visibility=True
+        )
 
-    def reachable(self, pose: SensorPose, wanted: NDArray[np.bool_]) -> NDArray[np.int64]:
-        """Target ordinals among ``wanted`` (N,) that some orientation within the pitch
-        limits might cover from the pose's position (``CachedTargetedEvaluator``)."""
-        return self.probe.reachable(self.model, pose, wanted)
+    def reachable(
+        self, pose: SensorPose, wanted: NDArray[np.bool_], model: int = 0
+    ) -> NDArray[np.int64]:
+        """Target ordinals among ``wanted`` (N,) that some orientation of model
+        ``model`` within its pitch limits might cover from the pose's position
+        (``CachedTargetedEvaluator``)."""
+        return self.probe.reachable(self.models[model], pose, wanted)
 
     def blind_areas(self, step_every: int = 2) -> list[str]:
         """Sensor areas from whose positions (every ``step_every``-th lattice point,
@@ -258,7 +288,11 @@ class Problem:
             probe = positions[inside & every]
             if len(probe) == 0:
                 probe = positions[inside][:1]
-            seen = any(len(self.reachable(self.pose(x, y, 0.0, 0.0), wanted)) for x, y in probe)
+            seen = any(
+                len(self.reachable(self.pose(x, y, 0.0, 0.0, m), wanted, m))
+                for m in range(len(self.models))
+                for x, y in probe
+            )
             if not seen:
                 blind.append(area.name)
         return blind

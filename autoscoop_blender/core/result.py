@@ -30,7 +30,7 @@ from .geom.drape import drape
 from .geom.grid import GroundGrid
 from .geom.outline import occluder_outline
 from .model.scene import Area, Exclusion, SceneModel
-from .model.sensors import SensorModel
+from .model.sensors import SensorModel, SensorPack
 from .optimize.base import PlanBound
 from .problem import point_need
 
@@ -97,7 +97,8 @@ class Result:
     uncovered: the connected uncovered patches (``uncovered_parts``). scene: the
     source file's name; origin: (3,) the local origin the core worked in; settings:
     the settings (an ``OptimizeSettings`` or ``CoverageSettings``); model: the run's
-    sensor model (None when each sensor brought its own). occluder_outlines: the top
+    sensor model (None when each sensor brought its own; the main one of a mixed
+    ``pack``, the models a plan mixed, None otherwise). occluder_outlines: the top
     view of the occluders that stand up from the terrain (buildings, walls, trees;
     ``geom.outline``), one Polygon per connected part in world XY, largest first.
     crs, crs_offset: the scene's georeference (``SceneModel.crs``; None: none), which
@@ -124,6 +125,7 @@ class Result:
     origin: F64 = field(default_factory=lambda: np.zeros(3))
     settings: Any = None
     model: SensorModel | None = None
+    pack: SensorPack | None = None
     target_polygon_m2: float = 0.0
     rays: dict[str, int] = field(default_factory=dict)
     occluder_outlines: tuple[Polygon, ...] = ()
@@ -156,6 +158,9 @@ class Provenance:
     by the optimizer before the final evaluation; t0: ``time.perf_counter()`` when the
     work began (wall_s is measured from it). existing: per sensor, whether it stood
     already (None: none did); standing: (M, 2) local sites where masts stood already.
+    model: the run's model, or the main one of a mixed ``pack`` (then each sensor
+    brings its own); sensor_costs: per sensor, what it costs (None: the settings'
+    ``sensor_cost`` each).
     """
 
     t0: float
@@ -170,6 +175,8 @@ class Provenance:
     bound: PlanBound | None = None
     existing: Sequence[bool] | None = None
     standing: F64 | None = None
+    pack: SensorPack | None = None
+    sensor_costs: Sequence[float] | None = None
 
 
 def finish_layout(
@@ -271,8 +278,13 @@ def finish_layout(
         # Existing sensors and masts cost nothing: the objective is the new ones'.
         new_sensors = sum(not s.existing for s in sensors)
         new_masts = sum(not m.existing for m in masts)
+        paid = None
+        if how.sensor_costs is not None:
+            paid = sum(c for c, s in zip(how.sensor_costs, sensors) if not s.existing)
         # The bounds are on the new ones too: standing masts cost nothing there.
-        metrics.update(objective_metrics(new_sensors, new_masts, how.settings, how.bound))
+        metrics.update(
+            objective_metrics(new_sensors, new_masts, how.settings, how.bound, paid)
+        )
         metrics.update(
             existing_sensors=len(sensors) - new_sensors, existing_masts=len(masts) - new_masts
         )
@@ -298,6 +310,7 @@ def finish_layout(
         origin=np.asarray(scene.origin, dtype=float),
         settings=how.settings,
         model=how.model,
+        pack=how.pack,
         target_polygon_m2=round(float(scene.target_union.area), 2),
         rays={"sight": sight, "drop": drop, "probe": extra_rays},
         occluder_outlines=outlines,
@@ -381,17 +394,25 @@ def coverage_by_k(
 
 
 def objective_metrics(
-    sensors: int, masts: int, settings: Any, bound: PlanBound | None
+    sensors: int,
+    masts: int,
+    settings: Any,
+    bound: PlanBound | None,
+    sensors_cost: float | None = None,
 ) -> dict[str, Any]:
     """The plan's objective and, when one was proven, the lower bound on it.
 
-    cost = mast_cost x masts + sensor_cost x sensors; objective: the value of the
+    cost = mast_cost x masts + what the sensors cost (``sensors_cost``; None:
+    sensor_cost x sensors); objective: the value of the
     settings' objective (cost, sensors or masts); lower_bound: no plan in
     ``bound_scope`` has a lower objective; gap = (objective - lower_bound) / objective;
     sensors_lower_bound, masts_lower_bound: the bounds on each part; lp_bound: the LP
-    relaxation's bound on the sensors, before rounding up.
+    relaxation's bound on the sensors, before rounding up (with models of different
+    costs: on what the sensors cost).
     """
-    cost = settings.mast_cost * masts + settings.sensor_cost * sensors
+    if sensors_cost is None:
+        sensors_cost = settings.sensor_cost * sensors
+    cost = settings.mast_cost * masts + sensors_cost
     value = {"cost": cost, "sensors": sensors, "masts": masts}[settings.objective]
     out: dict[str, Any] = {
         "cost": round(cost, 4),

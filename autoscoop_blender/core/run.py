@@ -27,7 +27,7 @@ from .errors import InputError
 from .geom.raycast import RayCaster
 from .masts import choose_sites, group_positions
 from .model.scene import SceneModel
-from .model.sensors import SensorModel, SensorPose, SensorSpec
+from .model.sensors import SensorModel, SensorPack, SensorPose, SensorSpec
 from .optimize.base import FixedSensor, Optimizer, Progress, Solution, newly_covered
 from .optimize.es import EvolutionStrategy
 from .optimize.greedy import Greedy
@@ -42,11 +42,13 @@ CasterFactory = Callable[[], RayCaster]
 
 
 class Run:
-    """One optimization of ``model`` sensors on a scene (see module docstring).
+    """One optimization of ``model`` sensors (or of a ``SensorPack`` of models a plan
+    may mix) on a scene (see module docstring).
 
     make_caster: builds the caster over the scene's occluders (worker processes call
     it too). existing: sensors that stand already (world metres, the run's model):
-    they count toward coverage, are never moved or dropped, cost nothing, and their
+    each of a model of the run; they count toward coverage, are never moved or
+    dropped, cost nothing, and their
     masts carry new sensors for the sensor cost alone. existing_masts: world (x, y)
     of masts that stand with free slots: candidate sites where a new sensor adds no
     mast. Both join the search space. resume: records of sensors
@@ -59,7 +61,7 @@ class Run:
         self,
         scene: SceneModel,
         make_caster: CasterFactory,
-        model: SensorModel,
+        model: SensorModel | SensorPack,
         settings: OptimizeSettings,
         resume: Sequence[dict[str, Any]] = (),
         on_fixed: Callable[[dict[str, Any]], None] | None = None,
@@ -159,6 +161,7 @@ class Run:
             "epochs": sensor.epochs,
             "evaluations": sensor.evaluations,
             "new_points": sensor.new_points,
+            "model": sensor.model,
             "coverage": s.coverage,
             "wall_s": round(time.perf_counter() - self.t0, 3),
             "rays_cast": s.sight_rays,
@@ -170,33 +173,43 @@ class Run:
         """Fix existing sensor ``k`` where it stands: its height as given (``height_m``,
         else its absolute ``z``, else the sensor area's or the model's)."""
         p = self.problem
-        if spec.model != p.model:
+        if spec.model not in p.models:
             raise InputError(
-                f"existing sensor {k} at ({spec.x:g}, {spec.y:g}): its model differs from "
-                "the run's; give existing sensors the model being planned"
+                f"existing sensor {k} at ({spec.x:g}, {spec.y:g}): its model is not one "
+                "of the run's; give existing sensors a model being planned"
             )
+        model = p.models.index(spec.model)
         x, y = (float(v) for v in p.scene.to_local(np.array([spec.x, spec.y])))
         ground = float(p.grid.ground_z(np.array([[x, y]]))[0])
         height = spec.height_m
         if height is None and spec.z is not None:
             height = spec.z - p.scene.origin[2] - ground
         if height is None:
-            height = p.height_at(x, y)
+            height = p.height_at(x, y, model)
         pose = SensorPose(x, y, ground + height, height, spec.pitch_deg, spec.yaw_deg)
-        cov = p.evaluate(pose)
+        cov = p.evaluate(pose, model=model)
         self.solution.sight_rays += cov.rays
         newly = newly_covered(self.solution, cov.covered)
-        self.solution.fix(FixedSensor(pose, 0.0, 0, 0, newly, cov.covered, existing=True))
+        self.solution.fix(
+            FixedSensor(pose, 0.0, 0, 0, newly, cov.covered, existing=True, model=model)
+        )
 
     def _replay(self, record: dict[str, Any]) -> None:
         """Re-fix a sensor from a checkpoint record and take over the optimizer's state."""
         p = self.problem
-        pose = p.pose(record["x"], record["y"], record["pitch_deg"], record["yaw_deg"])
-        cov = p.evaluate(pose)
+        model = int(record.get("model", 0))
+        pose = p.pose(record["x"], record["y"], record["pitch_deg"], record["yaw_deg"], model)
+        cov = p.evaluate(pose, model=model)
         newly = newly_covered(self.solution, cov.covered)
         self.solution.fix(
             FixedSensor(
-                pose, record["fitness"], record["epochs"], record["evaluations"], newly, cov.covered
+                pose,
+                record["fitness"],
+                record["epochs"],
+                record["evaluations"],
+                newly,
+                cov.covered,
+                model=model,
             )
         )
         self.solution.state = {k: record[k] for k in ("rng_state",) if k in record}
@@ -216,21 +229,26 @@ class Run:
         labels = group_positions(xy, self.settings.mast_join_m)
 
         def cover(i: int, x: float, y: float) -> np.ndarray:
-            pose = sensors[i].pose
-            return p.evaluate(p.pose(x, y, pose.pitch_deg, pose.yaw_deg)).covered
+            s = sensors[i]
+            pose = p.pose(x, y, s.pose.pitch_deg, s.pose.yaw_deg, s.model)
+            return p.evaluate(pose, model=s.model).covered
 
         keep = min(self.solution.n_covered, p.goal)
         existing = np.array([s.existing for s in sensors])
-        new_xy, labels = choose_sites(xy, labels, cover, p.n_targets, keep, p.need, existing)
+        new_xy, labels = choose_sites(
+            xy, labels, cover, p.n_targets, keep, p.need, existing,
+            cap=self.settings.max_sensors_per_mast,
+        )  # fmt: skip
         poses = [
-            p.pose(x, y, s.pose.pitch_deg, s.pose.yaw_deg) for s, (x, y) in zip(sensors, new_xy)
+            p.pose(x, y, s.pose.pitch_deg, s.pose.yaw_deg, s.model)
+            for s, (x, y) in zip(sensors, new_xy)
         ]
         return poses, [int(label) for label in labels]
 
     def _finish(self, poses: list[SensorPose], mast_of: list[int]) -> Result:
         """The final full evaluation of every sensor, and the result."""
         p, s = self.problem, self.solution
-        coverages = [p.evaluate_full(pose) for pose in poses]
+        coverages = [p.evaluate_full(pose, f.model) for pose, f in zip(poses, s.sensors)]
         how = Provenance(
             t0=self.t0,
             fitness=[f.fitness for f in s.sensors],
@@ -241,6 +259,8 @@ class Run:
             warnings=p.scene.warnings,
             settings=self.settings,
             model=p.model,
+            pack=p.pack if p.pack.mixed else None,
+            sensor_costs=[float(p.sensor_costs[f.model]) for f in s.sensors],
             bound=s.bound,
             existing=[f.existing for f in s.sensors],
             standing=p.space.positions[p.space.standing],

@@ -400,7 +400,17 @@ class OptimizeSettings(CoverageSettings):
         lo=0.0,
         flag="--mast-cost",
     )
-    sensor_cost: float = knob(1.0, "cost of a sensor", lo=0.0, flag="--sensor-cost")
+    sensor_cost: float = knob(
+        1.0, "cost of a sensor (of a model in a pack without its own)", lo=0.0, flag="--sensor-cost"
+    )
+    max_sensors_per_mast: int = knob(
+        4,
+        "sensors one mast may carry, of any mix of models",
+        lo=1,
+        flag="--max-per-mast",
+        label="Sensors per mast",
+        soft=(1, 16),
+    )
     bound: bool = knob(
         False,
         "also prove a lower bound on the objective over the candidate set (the lp optimizer "

@@ -20,7 +20,8 @@ and for an optimization its objective with the proven lower bound and the gap, o
 "evaluated layout"), sensor model, cost rule, target grid.
 
 Layers, bottom to top: target areas (pale sand, dark outline drawn again on top),
-sensor areas (light violet), sensor footprints (translucent blue, so overlaps come
+sensor areas (light violet), sensor footprints (translucent blue; when a plan mixes
+kinds, each kind its own colour: ``KIND_FILL``, a legend entry each; overlaps come
 out darker), occluders (solid grey: buildings, walls, trees, ``Result.
 occluder_outlines``), target cells no sensor covers (orange; with k > 1 every
 target cell, coloured by how many sensors cover it, 0 .. k), the m^2 of the largest
@@ -68,6 +69,10 @@ SENSOR_AREA_EDGE = "#7b3fa8"
 FOOTPRINT_FILL = "#1f6fc5"
 FOOTPRINT_ALPHA = 0.3  # per footprint: two overlapping ones give 1 - 0.7^2
 FOOTPRINT_EDGE = "#1b4f80"
+# Footprints of a plan that mixes sensor kinds: blue, bluish green and reddish purple
+# (Okabe-Ito), apart from each other and from the uncovered orange for every common
+# colour blindness.
+KIND_FILL = {"camera": FOOTPRINT_FILL, "lidar": "#009e73", "radar": "#cc79a7"}
 OCCLUDER_FILL = "#707070"
 OCCLUDER_EDGE = "#4a4a4a"
 UNCOVERED = "#f26b0f"
@@ -238,14 +243,20 @@ def details(result: Result) -> str:
     model = result.model
     if model is None and len({s.model for s in result.sensors}) == 1:
         model = result.sensors[0].model
-    if model is not None:
+    if result.pack is not None:
+        parts.append("mixed: " + ", ".join(m.kind for m in result.pack.models))
+    elif model is not None:
         parts.append(
             f"{model.kind} {model.h_fov_deg:g}° × {model.v_fov_deg:g}°, {model.range_m:g} m range"
         )
     if getattr(settings, "objective", None) == "cost":
-        parts.append(
-            f"cost = {settings.mast_cost:g} per mast + {settings.sensor_cost:g} per sensor"
-        )
+        per_sensor = f"{settings.sensor_cost:g} per sensor"
+        if result.pack is not None:
+            costs = result.pack.cost_of(settings.sensor_cost)
+            per_sensor = ", ".join(
+                f"{c:g} per {m.kind}" for m, c in zip(result.pack.models, costs)
+            )
+        parts.append(f"cost = {settings.mast_cost:g} per mast + {per_sensor}")
     if len(result.points):
         parts.append(f"{result.cell_m:g} m target grid")
     return "  ·  ".join(parts)
@@ -385,7 +396,6 @@ def _draw_map(ax: Axes, result: Result, k: int) -> None:
     """Every layer of the map, in world metres, in the order the module docstring gives."""
     targets = [g for _, g in result.targets]
     areas = [g for _, g in result.sensor_areas]
-    footprints = [s.footprint for s in result.sensors if not s.footprint.is_empty]
     ax.add_collection(
         _patches(targets, facecolor=TARGET_FILL, edgecolor="none", linewidth=0, zorder=1)
     )
@@ -393,14 +403,15 @@ def _draw_map(ax: Axes, result: Result, k: int) -> None:
         _patches(areas, facecolor=SENSOR_AREA_FILL, edgecolor=SENSOR_AREA_EDGE, linewidth=1.0,
                  zorder=1.5)
     )  # fmt: skip
-    ax.add_collection(
-        _patches(footprints, facecolor=FOOTPRINT_FILL, alpha=FOOTPRINT_ALPHA, edgecolor="none",
-                 zorder=2)
-    )  # fmt: skip
-    ax.add_collection(
-        _patches(footprints, facecolor="none", edgecolor=FOOTPRINT_EDGE, linewidth=0.5,
-                 alpha=0.6, zorder=2.1)
-    )  # fmt: skip
+    for fill, footprints in _footprints_by_colour(result):
+        ax.add_collection(
+            _patches(footprints, facecolor=fill, alpha=FOOTPRINT_ALPHA, edgecolor="none",
+                     zorder=2)
+        )  # fmt: skip
+        ax.add_collection(
+            _patches(footprints, facecolor="none", edgecolor=FOOTPRINT_EDGE, linewidth=0.5,
+                     alpha=0.6, zorder=2.1)
+        )  # fmt: skip
     ax.add_collection(
         _patches(list(result.occluder_outlines), facecolor=OCCLUDER_FILL,
                  edgecolor=OCCLUDER_EDGE, linewidth=0.5, zorder=3)
@@ -433,6 +444,23 @@ def _draw_map(ax: Axes, result: Result, k: int) -> None:
             gid=f"mast-{mast.n}",
             bbox={"boxstyle": "circle,pad=0.28", "fc": MAST_FILL, "ec": "white", "lw": 0.8},
         )
+
+
+def _footprints_by_colour(result: Result) -> list[tuple[str, list[Any]]]:
+    """(fill colour, non-empty footprints) per sensor kind when the plan mixes kinds
+    (``KIND_FILL``), else one entry in the footprint blue."""
+    kinds = sorted({s.model.kind for s in result.sensors}, key=list(KIND_FILL).index)
+    out = []
+    for kind in kinds if len(kinds) > 1 else [None]:
+        fill = FOOTPRINT_FILL if kind is None else KIND_FILL[kind]
+        shapes = [
+            s.footprint
+            for s in result.sensors
+            if not s.footprint.is_empty and kind in (None, s.model.kind)
+        ]
+        if shapes:
+            out.append((fill, shapes))
+    return out
 
 
 def _label_gaps(ax: Axes, result: Result) -> None:
@@ -533,11 +561,13 @@ def _legend_handles(result: Result, k: int) -> list[Any]:
             Patch(fc=UNCOVERED, label=f"target not covered: {gaps * result.cell_m**2:,.0f} m²"
                   f" ({100 * gaps / len(n):.1f} %);\nlabels: the largest gaps")
         )  # fmt: skip
-    n_fp = sum(1 for s in result.sensors if not s.footprint.is_empty)
-    if n_fp:
+    groups = _footprints_by_colour(result)
+    for fill, shapes in groups:
+        kind = next((k for k, c in KIND_FILL.items() if c == fill), "") if len(groups) > 1 else ""
+        what = f"{kind} footprints" if kind else "sensor footprints"
         handles.append(
-            Patch(fc=FOOTPRINT_FILL, alpha=FOOTPRINT_ALPHA, ec=FOOTPRINT_EDGE, lw=0.5,
-                  label=f"sensor footprints ({n_fp}): ground a\nsensor covers; overlaps darker")
+            Patch(fc=fill, alpha=FOOTPRINT_ALPHA, ec=FOOTPRINT_EDGE, lw=0.5,
+                  label=f"{what} ({len(shapes)}): ground a\nsensor covers; overlaps darker")
         )  # fmt: skip
     if result.sensor_areas:
         count = len(result.sensor_areas)

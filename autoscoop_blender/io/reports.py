@@ -35,6 +35,7 @@ SENSORS_CSV_HEADER = (
     "target_covered_m2",
     "mast",
     "existing",
+    "kind",
 )
 
 
@@ -55,11 +56,14 @@ def result_dict(result: Result, extra_versions: dict[str, str] | None = None) ->
     """The result.json document of an optimization.
 
     Its ``model`` and ``sensors`` keys form a valid sensors file, so
-    ``headless coverage SCENE --sensors result.json`` recomputes the coverage.
+    ``headless coverage SCENE --sensors result.json`` recomputes the coverage. A
+    mixed pack's plan also lists ``models`` (each with its ``sensor_cost``), and each
+    sensor its ``model``.
     """
     settings = result.settings
     assert result.model is not None, "an optimization has one model"
-    return {
+    mixed = result.pack is not None
+    doc = {
         "schema": RESULT_SCHEMA,
         "scene": result.scene,
         "optimizer": settings.optimizer,
@@ -87,6 +91,7 @@ def result_dict(result: Result, extra_versions: dict[str, str] | None = None) ->
                 "target_covered_m2": s.covered_target_m2,
                 "footprint_m2": round(s.footprint_m2, 2),
                 "existing": s.existing,
+                **({"model": s.model.to_dict()} if mixed else {}),
             }
             for s in result.sensors
         ],
@@ -104,6 +109,9 @@ def result_dict(result: Result, extra_versions: dict[str, str] | None = None) ->
         ],
         "origin": [float(v) for v in result.origin],
     }
+    if result.pack is not None:
+        doc["models"] = result.pack.to_list(settings.sensor_cost)
+    return doc
 
 
 def coverage_dict(result: Result) -> dict[str, Any]:
@@ -192,8 +200,9 @@ def point_rows(result: Result) -> list[tuple[float, float, float, int, int, floa
 
 
 def sensors_csv(result: Result) -> str:
-    """The paper's Table III columns, one row per sensor, plus its mast (1-based) and
-    whether it stood already (1) or is new (0)."""
+    """The paper's Table III columns, one row per sensor, plus its mast (1-based),
+    whether it stood already (1) or is new (0), and its model's kind (camera, lidar,
+    radar)."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(SENSORS_CSV_HEADER)
@@ -210,6 +219,7 @@ def sensors_csv(result: Result) -> str:
                 f"{s.covered_target_m2:.0f}",
                 s.mast + 1,
                 int(s.existing),
+                s.model.kind,
             ]
         )
     return buf.getvalue()

@@ -91,6 +91,13 @@ FRUSTUM_STEP_DEG = 10.0
 # Footprints: the lift (m) above the ground that keeps them from z-fighting with it.
 FOOTPRINT_LIFT_M = 0.15
 FOOTPRINT_RGBA = (0.10, 0.80, 0.20, 0.40)
+# Each sensor kind its own footprint and frustum colour (a camera's: the ones above),
+# and its own footprint material (``FOOTPRINT_MATERIAL`` + " lidar", ...).
+KIND_FOOTPRINT_RGBA = {
+    "camera": FOOTPRINT_RGBA,
+    "lidar": (0.10, 0.35, 0.95, 0.40),
+    "radar": (0.85, 0.20, 0.75, 0.40),
+}
 
 MAST_RADIUS_M = 0.15
 MAST_SIDES = 12
@@ -113,6 +120,11 @@ COVERAGE_PALETTE = np.array(
 )
 
 FRUSTUM_RGBA = (1.0, 0.6, 0.0, 1.0)
+KIND_FRUSTUM_RGBA = {
+    "camera": FRUSTUM_RGBA,
+    "lidar": (0.20, 0.60, 1.00, 1.0),
+    "radar": (0.90, 0.30, 0.90, 1.0),
+}
 
 
 # --- public API --------------------------------------------------------------------
@@ -131,13 +143,19 @@ def spawn_results(scene: bpy.types.Scene, result: Result) -> bpy.types.Collectio
     results[RESULTS_TAG] = True
     groups = {name: _new_collection(name, results.children) for name in GROUP_COLLECTIONS}
 
-    footprint_mat = _flat_material(FOOTPRINT_MATERIAL, FOOTPRINT_RGBA)
+    footprint_mats = {
+        kind: _flat_material(
+            FOOTPRINT_MATERIAL if kind == "camera" else f"{FOOTPRINT_MATERIAL} {kind}", rgba
+        )
+        for kind, rgba in KIND_FOOTPRINT_RGBA.items()
+        if any(rec.model.kind == kind for rec in result.sensors) or kind == "camera"
+    }
     mast_mat = _flat_material(MAST_MATERIAL, MAST_RGBA)
 
     for rec in result.sensors:
         _link(groups[SENSORS_COLLECTION], _sensor_object(rec))
         _link(groups[FRUSTA_COLLECTION], _frustum_object(rec))
-        footprint = _footprint_object(rec, footprint_mat)
+        footprint = _footprint_object(rec, footprint_mats[rec.model.kind])
         if footprint is not None:
             _link(groups[FOOTPRINTS_COLLECTION], footprint)
     for mast in result.masts:
@@ -146,7 +164,7 @@ def spawn_results(scene: bpy.types.Scene, result: Result) -> bpy.types.Collectio
         _link(groups[COVERAGE_COLLECTION], _coverage_object(result))
 
     # A material nobody ended up using (e.g. every footprint empty) would be an orphan.
-    for mat in (footprint_mat, mast_mat):
+    for mat in (*footprint_mats.values(), mast_mat):
         if mat.users == 0:
             bpy.data.materials.remove(mat)
     log.info(
@@ -345,7 +363,7 @@ def _frustum_object(rec: SensorRecord) -> bpy.types.Object:
     obj.matrix_world = _matrix(np.eye(3), (rec.x, rec.y, rec.z))
     obj.display_type = "WIRE"
     obj.hide_render = True
-    obj.color = FRUSTUM_RGBA
+    obj.color = KIND_FRUSTUM_RGBA[rec.model.kind]
     obj[SENSOR_PROP] = int(rec.n)
     return obj
 
@@ -368,7 +386,7 @@ def _footprint_object(rec: SensorRecord, material: bpy.types.Material) -> bpy.ty
     mesh.materials.append(material)
     obj = bpy.data.objects.new(name, mesh)
     obj.matrix_world = _matrix(np.eye(3), anchor)
-    obj.color = FOOTPRINT_RGBA
+    obj.color = KIND_FOOTPRINT_RGBA[rec.model.kind]
     obj[SENSOR_PROP] = int(rec.n)
     obj["footprint_m2"] = float(rec.footprint_m2)
     return obj

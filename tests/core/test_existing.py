@@ -63,7 +63,7 @@ def test_the_exact_plan_needs_one_more_and_proves_it():
 
 def test_a_given_sensor_of_another_model_is_refused():
     other = SensorSpec(PAPER_CAMERA, 5.0, 5.0, 7.0, 45.0, 0.0)
-    with pytest.raises(InputError, match=r"existing sensor 1 at \(5, 5\): its model differs"):
+    with pytest.raises(InputError, match=r"existing sensor 1 at \(5, 5\): its model is not one"):
         _run("greedy", [other])
 
 

@@ -318,14 +318,16 @@ class HandProblem:
             matrix=instance(rows, 8, self.goal).matrix,
         )
         self.space = SimpleNamespace(standing=np.zeros(n, dtype=bool))  # no mast stands
+        self.settings = OptimizeSettings(optimizer="greedy", objective="sensors")
+        self.sensor_costs = np.ones(1)
 
     def reached(self, n_covered):
         return n_covered >= self.goal
 
-    def pose(self, x, y, pitch, yaw):
+    def pose(self, x, y, pitch, yaw, model=0):
         return SensorPose(float(x), float(y), 6.0, 6.0, float(pitch), float(yaw))
 
-    def evaluate(self, pose):
+    def evaluate(self, pose, model=0):
         points = list(HAND_K2.values())[round(pose.x / 10.0)]
         return SimpleNamespace(covered=np.array(points, dtype=np.int64), rays=0)
 

@@ -107,6 +107,7 @@ def test_the_panel_shows_the_labelled_knobs():
     shown = {s.path for s in PANEL_SETTINGS}
     assert shown == {
         "method", "grid_m", "coverage_k", "optimizer", "rho", "seed", "objective",
+        "max_sensors_per_mast",
         "es.mu", "es.lam", "es.eps", "es.max_epochs",
     }  # fmt: skip
     assert all(s.knob.label for s in PANEL_SETTINGS)

@@ -3,8 +3,9 @@ union over a set of sensors.
 
 A coverage method answers, for a sensor pose, which target points the sensor covers
 (line of sight, inside range and FoV, point density at least the model's threshold,
-and for a camera with a resolution the pixel density its model and the point's target
-area ask for: ``pixel_need``, ``sensors`` module docstring), with what density chi,
+for a camera with a resolution the pixel density its model and the point's target
+area ask for, and the sensor kind the area requires: ``pixel_need``, ``sensors``
+module docstring), with what density chi,
 and what its footprint on the ground is. The methods are
 ``targeted`` (``targeted.py``, one sight ray per target point that can count; exact at
 the grid's resolution), its cached form (``cached.py``) and the paper's ``pointcloud``
@@ -27,7 +28,7 @@ from shapely.geometry.base import BaseGeometry
 from ..geom.alpha import union_triangles
 from ..geom.grid import GroundGrid
 from ..geom.raycast import RayCaster
-from ..model.sensors import SensorModel, SensorPose, facing_factor, surface_factor
+from ..model.sensors import KINDS, SensorModel, SensorPose, facing_factor, surface_factor
 
 I64 = NDArray[np.int64]
 F64 = NDArray[np.float64]
@@ -165,18 +166,24 @@ def pixel_need(grid: GroundGrid, model: SensorModel, ordinal: I64) -> F64 | None
     """(K,) the pixel density (px/m) each row (target ordinal, -1 outside the targets)
     must reach for ``model`` to cover it: the larger of the model's ``min_px_per_m``
     and the target area's ``dori`` (``grid.region_px_per_m``); ``inf`` where the model
-    has no resolution and the area asks for one (it cannot cover the point). None when
-    no row asks for any pixel density (every model on a scene without ``dori``)."""
+    cannot cover the point at all: it has no resolution and the area asks for one, or
+    the area requires another sensor kind (``grid.region_kind``). None when no row asks
+    for anything (every model on a scene without ``dori`` and ``require``)."""
     region_px = grid.region_px_per_m
+    t = ordinal >= 0
+    other_kind = np.zeros(len(ordinal), dtype=bool)
+    if (grid.region_kind >= 0).any():
+        kind = grid.region_kind[grid.target_region[ordinal[t]]]
+        other_kind[t] = (kind >= 0) & (kind != KINDS.index(model.kind))
     asks = bool(region_px.any())
-    if model.resolution_px is None and not asks:
+    if model.resolution_px is None and not asks and not other_kind.any():
         return None
     need = np.full(len(ordinal), model.min_px_per_m)
     if asks:
-        t = ordinal >= 0
         need[t] = np.maximum(need[t], region_px[grid.target_region[ordinal[t]]])
     if model.resolution_px is None:
         need[need > 0] = np.inf
+    need[other_kind] = np.inf
     if not need.any():
         return None
     return need

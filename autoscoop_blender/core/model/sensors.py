@@ -637,3 +637,59 @@ PRESETS: dict[str, SensorModel] = {
     "traffic_radar": TRAFFIC_RADAR,
     "cctv_camera": CCTV_CAMERA,
 }
+
+
+@dataclass(frozen=True)
+class SensorPack:
+    """The sensor models one plan may mix on its masts, each with its own cost.
+
+    models: (M,) distinct models, the first the run's main one (the ES and the
+    single-model outputs use it); costs: (M,) what one sensor of each costs, in the
+    units of ``mast_cost``; None: the settings' ``sensor_cost``.
+    """
+
+    models: tuple[SensorModel, ...]
+    costs: tuple[float | None, ...]
+
+    @classmethod
+    def of(cls, model: SensorModel | SensorPack) -> SensorPack:
+        """``model`` as a pack: a single model at the settings' sensor cost."""
+        return model if isinstance(model, SensorPack) else cls((model,), (None,))
+
+    @classmethod
+    def from_spec(cls, specs: Any, label: str) -> SensorPack:
+        """A pack from a list whose entries are a preset name or a table of model keys
+        (as ``SensorModel.from_spec``) with an optional ``sensor_cost``; InputError
+        naming ``label`` and the entry for any fault."""
+        if not isinstance(specs, list) or not specs:
+            raise InputError(f"{label}: models must be a non-empty list of models")
+        models: list[SensorModel] = []
+        costs: list[float | None] = []
+        for k, spec in enumerate(specs, start=1):
+            where = f"{label} {k}"
+            cost = None
+            if isinstance(spec, dict) and "sensor_cost" in spec:
+                spec = dict(spec)
+                cost = number(spec.pop("sensor_cost"), "sensor_cost", where, 0.0, 1e9)
+            model = SensorModel.from_spec(spec, where)
+            if model in models:
+                raise InputError(f"{where}: the same model as entry {models.index(model) + 1}")
+            models.append(model)
+            costs.append(cost)
+        return cls(tuple(models), tuple(costs))
+
+    @property
+    def mixed(self) -> bool:
+        """Whether the pack holds more than one model."""
+        return len(self.models) > 1
+
+    def cost_of(self, sensor_cost: float) -> NDArray[np.float64]:
+        """(M,) the cost of one sensor of each model (None: ``sensor_cost``)."""
+        return np.array([sensor_cost if c is None else c for c in self.costs], dtype=float)
+
+    def to_list(self, sensor_cost: float) -> list[dict[str, Any]]:
+        """The pack as result files record it: each model's keys and its cost."""
+        return [
+            {**m.to_dict(), "sensor_cost": float(c)}
+            for m, c in zip(self.models, self.cost_of(sensor_cost))
+        ]

@@ -30,7 +30,8 @@ class FixedSensor:
     evaluations it took, the target ordinals it newly covered to their k when it was
     fixed, and ``seen``: every target ordinal it covers (None: the same as ``newly``,
     which is all a sensor can add when every k is 1). existing: a sensor that stands
-    already (given to the run: kept as it is, at no cost)."""
+    already (given to the run: kept as it is, at no cost). model: its model, an index
+    into the problem's ``models``."""
 
     pose: SensorPose
     fitness: float
@@ -39,6 +40,7 @@ class FixedSensor:
     newly: NDArray[np.int64]
     seen: NDArray[np.int64] | None = None
     existing: bool = False
+    model: int = 0
 
     @property
     def new_points(self) -> int:
@@ -79,7 +81,10 @@ class PlanBound:
     proven); lp: the proven lower bound on the LP relaxation's value (sensors; equal
     to it when the LP was solved to the end); rounds: of column generation;
     scope: over which plans the bound holds, in words; cost_lp: a proven lower bound
-    on the cost from the mast-aware LP (``bound.mast_aware_bound``), 0 if not known.
+    on the cost from the mast-aware LP (``bound.mast_aware_bound``), 0 if not known;
+    sensor_cost_lp: a proven lower bound on what the sensors cost together (None:
+    ``sensor_cost`` x ``sensors``); with models of different costs ``lp`` is that
+    bound and ``sensors`` follows from it through the dearest model.
     """
 
     sensors: int
@@ -88,6 +93,7 @@ class PlanBound:
     scope: str
     rounds: int = 0
     cost_lp: float = 0.0
+    sensor_cost_lp: float | None = None
 
     def objective(self, objective: str, mast_cost: float, sensor_cost: float) -> float:
         """The bound on ``objective``: sensors, masts, or cost = mast_cost x masts +
@@ -98,7 +104,10 @@ class PlanBound:
             return float(self.sensors)
         if objective == "masts":
             return float(masts)
-        return max(self.cost_lp, mast_cost * masts + sensor_cost * self.sensors)
+        sensors = self.sensor_cost_lp
+        if sensors is None:
+            sensors = sensor_cost * self.sensors
+        return max(self.cost_lp, mast_cost * masts + sensors)
 
 
 class StopReason:
@@ -225,12 +234,13 @@ def fix_candidate(problem: Problem, solution: Solution, cands: CandidateSet, c: 
     """Fix candidate ``c`` as a sensor: its pose evaluated afresh (the rays counted),
     its fitness the points it raises towards their k (with k = 1: newly covers)."""
     pose = cands.pose(problem, c)
-    cov = problem.evaluate(pose)
+    model = int(cands.model[c])
+    cov = problem.evaluate(pose, model=model)
     solution.sight_rays += cov.rays
     solution.evaluations += 1
     newly = newly_covered(solution, cov.covered)
     gain = int(np.count_nonzero(solution.short()[cov.covered]))
-    sensor = FixedSensor(pose, float(gain), 0, 0, newly, cov.covered)
+    sensor = FixedSensor(pose, float(gain), 0, 0, newly, cov.covered, model=model)
     solution.fix(sensor)
     return sensor
 
@@ -251,10 +261,13 @@ def taken_candidates(cands: CandidateSet, solution: Solution) -> NDArray[np.int6
     """The candidates whose poses are sensors of ``solution`` already (a resumed run)."""
     if not solution.sensors:
         return np.zeros(0, dtype=np.int64)
-    fixed = {(s.pose.x, s.pose.y, s.pose.pitch_deg, s.pose.yaw_deg) for s in solution.sensors}
+    fixed = {
+        (s.pose.x, s.pose.y, s.pose.pitch_deg, s.pose.yaw_deg, s.model) for s in solution.sensors
+    }
     xy = cands.positions[cands.position]
-    ang = cands.angles[0][cands.orientation]
-    keys = zip(xy[:, 0], xy[:, 1], ang[:, 0], ang[:, 1])
-    return np.array(
-        [c for c, key in enumerate(keys) if tuple(map(float, key)) in fixed], dtype=np.int64
-    )
+    taken = []
+    for c, ((x, y), m, o) in enumerate(zip(xy, cands.model, cands.orientation)):
+        pitch, yaw = cands.angles[m][o]
+        if (float(x), float(y), float(pitch), float(yaw), int(m)) in fixed:
+            taken.append(c)
+    return np.array(taken, dtype=np.int64)

@@ -65,7 +65,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import sparse
 
-from .cover import CoverInstance, MastCost, mast_cost_at
+from .cover import CoverInstance, MastCost, SensorCost, cost_at
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
@@ -475,23 +475,29 @@ def split_cover_lp(
 
 
 def mast_aware_bound(
-    lp: LPSolution, site_of: I64, mast_cost: MastCost, sensor_cost: float
+    lp: LPSolution,
+    site_of: I64,
+    mast_cost: MastCost,
+    sensor_cost: float,
+    lp_cost: F64 | None = None,
 ) -> float:
     """A proven lower bound on the mast-aware LP (so on the cost of every plan) from
-    the last duals of the sensors LP (solved with unit costs): scaled by the largest
-    ``t`` for which every site ``s`` can share ``mast_cost`` out as the link duals its
-    candidates need, ``sum_{c at s} max(0, sensor_cost (t priced_c - 1)) <=
+    the last duals of the sensors LP, solved with the costs ``lp_cost`` (C,) (None:
+    1 each), a sensor costing ``sensor_cost`` times that: scaled by the largest ``t``
+    for which every site ``s`` can share ``mast_cost`` out as the link duals its
+    candidates need, ``sum_{c at s} sensor_cost max(0, t priced_c - lp_cost_c) <=
     mast_cost``, they are feasible for the mast-aware LP's dual, whose value is then
     ``t sensor_cost value``. 0 when nothing was solved, or when the LP was solved in
     parts (their duals are not one dual solution of the whole)."""
     if not np.isfinite(lp.value) or len(lp.priced) == 0 or sensor_cost <= 0 or lp.parts > 1:
         return 0.0
     value = lp.value if math.isnan(lp.dual) else lp.dual
+    unit = 1.0 if lp_cost is None else lp_cost
     n_sites = max(int(site_of.max()) + 1, int(np.size(mast_cost)))
-    per_site = mast_cost_at(mast_cost, np.arange(n_sites))
+    per_site = cost_at(mast_cost, np.arange(n_sites))
 
     def fits(t: float) -> bool:
-        excess = np.maximum(0.0, sensor_cost * (t * lp.priced - 1.0))
+        excess = sensor_cost * np.maximum(0.0, t * lp.priced - unit)
         return bool((np.bincount(site_of, weights=excess, minlength=n_sites) <= per_site).all())
 
     lo, hi = 0.0, 1.0
@@ -591,17 +597,19 @@ def sensors_on_sites(
     sites: I64,
     start: list[int],
     mast_cost: MastCost,
-    sensor_cost: float,
+    sensor_cost: SensorCost,
     deadline: float | None = None,
     stop: threading.Event | None = None,
     cols: I64 | None = None,
 ) -> Generator[None, None, list[int]]:
     """The best plan on ``sites`` by the mast-aware MILP: every candidate at those
-    sites, or those of ``cols`` there (x_c, binary, ``sensor_cost``), each site (y_s,
-    binary, ``mast_cost``), ``x_c <= y_s``, and the cover rows. ``start`` (candidates at those sites that
-    reach the goal) is HiGHS' first incumbent. At most ``MAX_NODES`` branch-and-bound
-    nodes, so the answer does not depend on the machine's speed; stops at ``deadline``
-    or ``stop`` with the best plan so far. Returns the chosen candidates."""
+    sites, or those of ``cols`` there (x_c, binary, ``sensor_cost``: one for all or
+    (C,) per candidate), each site (y_s, binary, ``mast_cost``), ``x_c <= y_s``, at
+    most the instance's ``cap`` candidates per site, and the cover rows. ``start``
+    (candidates at those sites that reach the goal) is HiGHS' first incumbent. At most
+    ``MAX_NODES`` branch-and-bound nodes, so the answer does not depend on the
+    machine's speed; stops at ``deadline`` or ``stop`` with the best plan so far.
+    Returns the chosen candidates."""
     if cols is None:
         cols = np.flatnonzero(np.isin(site_of, sites)).astype(np.int64)
     cols = np.unique(cols[np.isin(site_of[cols], sites)])
@@ -611,9 +619,9 @@ def sensors_on_sites(
     h = _new_highs(limit)
     h.setOptionValue("mip_max_nodes", MAX_NODES)
     _cover_rows(h, n, inst.goal, inst.k if inst.multi else None)
-    _add_columns(h, inst.matrix[cols], np.full(n_cols, sensor_cost), 1.0)
+    _add_columns(h, inst.matrix[cols], cost_at(sensor_cost, cols), 1.0)
     none = np.zeros(0, dtype=np.int32)
-    h.addCols(n_sites, mast_cost_at(mast_cost, sites), np.zeros(n_sites), np.ones(n_sites), 0,
+    h.addCols(n_sites, cost_at(mast_cost, sites), np.zeros(n_sites), np.ones(n_sites), 0,
               np.zeros(n_sites, dtype=np.int32), none, np.zeros(0))  # fmt: skip
     # x_c - y_s <= 0, one row per candidate
     index = np.empty(2 * n_cols, dtype=np.int32)
@@ -622,6 +630,22 @@ def sensors_on_sites(
     value = np.tile([1.0, -1.0], n_cols)
     h.addRows(n_cols, np.full(n_cols, -highspy.kHighsInf), np.zeros(n_cols), 2 * n_cols,
               (2 * np.arange(n_cols)).astype(np.int32), index, value)  # fmt: skip
+    if inst.cap is not None:
+        # sum_{c at s} x_c - cap y_s <= 0, one row per site
+        order = np.argsort(site_idx, kind="stable")
+        starts = np.searchsorted(site_idx[order], np.arange(n_sites))
+        index = np.empty(n_cols + n_sites, dtype=np.int32)
+        value = np.empty(n_cols + n_sites)
+        row_start = starts + np.arange(n_sites)  # each row: its candidates, then y_s
+        for s_k in range(n_sites):
+            at = order[starts[s_k] : starts[s_k + 1] if s_k + 1 < n_sites else n_cols]
+            lo = row_start[s_k]
+            index[lo : lo + len(at)] = n + at
+            value[lo : lo + len(at)] = 1.0
+            index[lo + len(at)] = n + n_cols + s_k
+            value[lo + len(at)] = -float(inst.cap)
+        h.addRows(n_sites, np.full(n_sites, -highspy.kHighsInf), np.zeros(n_sites),
+                  n_cols + n_sites, row_start.astype(np.int32), index, value)  # fmt: skip
     # With k > 1 a point's u must be whole too: one of its k would count it half.
     binary = np.arange(0 if inst.multi else n, n + n_cols + n_sites, dtype=np.int32)
     h.changeColsIntegrality(

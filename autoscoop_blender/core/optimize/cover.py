@@ -3,18 +3,21 @@
 The instance: candidates (rows of the candidate matrix), target points (columns), and
 the goal: at least ``goal`` points covered, each by its k candidates (``need``;
 multicover, every k = 1 by default; a candidate is chosen once at most). A ``Cover``
-is a set of chosen candidates with the number of them covering each point. The moves, each cheap enough to repeat
-thousands of times on 130,000 candidates:
+is a set of chosen candidates with the number of them covering each point. The moves,
+each cheap enough to repeat thousands of times on 130,000 candidates:
 
-* ``complete``: add the candidate that covers the most points still uncovered (or
-  the most per cost, a new mast costing extra), until the goal is met (greedy);
+* ``complete``: add the candidate that covers the most points still uncovered per
+  its cost (a new mast costing extra), until the goal is met (greedy);
 * ``prune``: drop chosen candidates whose points stay covered well enough without them
   (the one whose removal loses the fewest points first);
-* ``swap_two_for_one``: replace two chosen candidates by one of a pool that covers
-  what only those two covered (less the slack over the goal);
+* ``swap_two_for_one``: replace two chosen candidates by one of a pool (cheaper than
+  the two) that covers what only those two covered (less the slack over the goal);
 * ``improve``: prune and swap until neither helps;
 * ``close_sites``: close a mast and cover its points from the other masts, while that
   lowers the cost.
+
+Candidates may cost differently (a pack of models); the instance may cap the
+candidates one mast site holds (``CoverInstance.cap``): the moves keep within it.
 
 They are hand-written because no library does partial set cover moves on sparse
 matrices; the LP behind them is HiGHS (``bound.py``).
@@ -35,12 +38,16 @@ I64 = NDArray[np.int64]
 class CoverInstance:
     """matrix: (C, N) CSR, 1 where candidate c covers point n; goal: points to cover;
     xy: (N, 2) where the points are, m (None if not known); need: (N,) candidates
-    that must cover each point for it to count (None: 1 each)."""
+    that must cover each point for it to count (None: 1 each); site_of: (C,) each
+    candidate's mast site and cap: the most candidates one site may hold (None: no
+    limit; both or neither)."""
 
     matrix: sparse.csr_matrix
     goal: int
     xy: NDArray[np.float64] | None = None
     need: NDArray[np.int32] | None = None
+    site_of: I64 | None = None
+    cap: int | None = None
     _by_point: sparse.csc_matrix | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
@@ -83,8 +90,20 @@ class Cover:
         self.chosen: list[int] = []
         self.count = np.zeros(inst.n_points, dtype=np.int32)
         self.n_covered = 0
+        # Chosen candidates per site, when sites have a cap.
+        self.at_site: dict[int, int] = {}
         for c in chosen:
             self.add(c)
+
+    def full(self, site: int) -> bool:
+        """Whether ``site`` holds as many chosen candidates as its cap allows."""
+        cap = self.inst.cap
+        return cap is not None and self.at_site.get(site, 0) >= cap
+
+    def within_cap(self) -> bool:
+        """Whether no site holds more chosen candidates than the cap."""
+        cap = self.inst.cap
+        return cap is None or all(n <= cap for n in self.at_site.values())
 
     @property
     def slack(self) -> int:
@@ -96,12 +115,17 @@ class Cover:
         self.n_covered += int(np.count_nonzero(self.count[pts] == self.inst.k[pts] - 1))
         self.count[pts] += 1
         self.chosen.append(int(c))
+        if self.inst.site_of is not None:
+            site = int(self.inst.site_of[c])
+            self.at_site[site] = self.at_site.get(site, 0) + 1
 
     def remove(self, c: int) -> None:
         pts = self.inst.covers(c)
         self.count[pts] -= 1
         self.n_covered -= int(np.count_nonzero(self.count[pts] == self.inst.k[pts] - 1))
         self.chosen.remove(int(c))
+        if self.inst.site_of is not None:
+            self.at_site[int(self.inst.site_of[c])] -= 1
 
     def short(self) -> NDArray[np.bool_]:
         """(N,) the points below their k."""
@@ -116,13 +140,16 @@ class Cover:
 
 # A mast cost: one for every site, or (S,) one per site (0 where a mast stands already).
 MastCost = float | NDArray[np.float64]
+# A sensor cost: one for every candidate, or (C,) one per candidate (a mixed pack).
+SensorCost = float | NDArray[np.float64]
 
 
-def mast_cost_at(mast_cost: MastCost, sites: I64) -> NDArray[np.float64]:
-    """(len(sites),) the mast cost at each of ``sites``."""
-    if np.ndim(mast_cost) == 0:
-        return np.full(len(sites), float(mast_cost))
-    return np.asarray(mast_cost, dtype=float)[sites]
+def cost_at(cost: MastCost | SensorCost, index: I64) -> NDArray[np.float64]:
+    """(len(index),) the cost (one for all, or one per site or candidate) at each of
+    ``index``."""
+    if np.ndim(cost) == 0:
+        return np.full(len(index), float(cost))
+    return np.asarray(cost, dtype=float)[index]
 
 
 def complete(
@@ -130,24 +157,30 @@ def complete(
     pool: I64,
     site_of: I64 | None = None,
     mast_cost: MastCost = 0.0,
-    sensor_cost: float = 1.0,
+    sensor_cost: SensorCost = 1.0,
 ) -> Cover:
     """Add candidates of ``pool`` until the goal is met: each time the one covering
-    the most uncovered points or, given each candidate's site (``site_of``, all
-    candidates), the most per cost: ``sensor_cost``, plus the site's ``mast_cost`` at
-    a site no chosen candidate uses yet. Stops early when no candidate adds a point."""
+    the most uncovered points per ``sensor_cost`` (one for all, or (C,) per
+    candidate) or, given each candidate's site (``site_of``, all candidates), per
+    that plus the site's ``mast_cost`` at a site no chosen candidate uses yet. A site
+    at the instance's cap takes no more. Stops early when no candidate adds a point."""
     inst = cover.inst
     sub = inst.matrix[pool]
     by_point = sub.tocsc()
     gains = np.asarray(sub @ cover.short().astype(np.float32)).ravel()
     # A candidate is chosen once at most (with k > 1 a chosen one may still gain).
     gains[np.isin(pool, cover.chosen)] = -1.0
-    price = np.ones(len(pool))
+    own = np.maximum(cost_at(sensor_cost, pool), 1e-9)  # never divide by 0
+    price = own.copy()
+    capped = inst.site_of if inst.cap is not None else None
+    if capped is not None:
+        full = [s for s in cover.at_site if cover.full(s)]
+        gains[np.isin(capped[pool], full)] = -1.0
     if site_of is not None:
         site = site_of[pool]
         used = np.isin(site, site_of[cover.chosen])
-        # A free sensor on a mast in use is taken first; never divide by 0.
-        price = np.maximum(sensor_cost + mast_cost_at(mast_cost, site) * ~used, 1e-9)
+        # A sensor on a mast in use is taken before one that needs a new mast.
+        price = np.maximum(own + cost_at(mast_cost, site) * ~used, 1e-9)
     while cover.slack < 0 and len(pool):
         k = int(np.argmax(gains / price))
         if gains[k] <= 0:
@@ -157,24 +190,29 @@ def complete(
         new = new[cover.count[new] == inst.k[new] - 1]
         cover.add(c)
         if site_of is not None:
-            price[site == site_of[c]] = max(sensor_cost, 1e-9)
+            at = site == site_of[c]
+            price[at] = own[at]
         # Points covered to their k now add nothing to any candidate any more.
         gains -= np.asarray(by_point[:, new].sum(axis=1)).ravel()
         gains[k] = -1.0
+        if capped is not None and cover.full(int(capped[c])):
+            gains[capped[pool] == capped[c]] = -1.0
     return cover
 
 
-def close_sites(cover: Cover, site_of: I64, mast_cost: MastCost, sensor_cost: float) -> Cover:
+def close_sites(
+    cover: Cover, site_of: I64, mast_cost: MastCost, sensor_cost: SensorCost
+) -> Cover:
     """Close masts while that lowers the cost (``mast_cost`` per site in use plus
     ``sensor_cost`` per candidate): for each site in use, the one with the fewest
     candidates first, drop its candidates, cover the goal again from the candidates
-    at the other sites in use (greedy, pruned) and keep that if it costs less.
-    Returns the cheapest cover found (``cover`` itself if none is cheaper)."""
+    at the other sites in use (greedy per cost, pruned) and keep that if it costs
+    less. Returns the cheapest cover found (``cover`` itself if none is cheaper)."""
     inst = cover.inst
 
     def cost(c: Cover) -> float:
-        masts = mast_cost_at(mast_cost, np.unique(site_of[c.chosen])).sum()
-        return float(masts) + sensor_cost * len(c.chosen)
+        masts = cost_at(mast_cost, np.unique(site_of[c.chosen])).sum()
+        return float(masts) + float(cost_at(sensor_cost, np.array(c.chosen, dtype=int)).sum())
 
     best = cover
     closed = True
@@ -186,7 +224,7 @@ def close_sites(cover: Cover, site_of: I64, mast_cost: MastCost, sensor_cost: fl
             rest = np.array(sorted(in_use - {int(s)}), dtype=np.int64)
             kept = [c for c in best.chosen if site_of[c] != s]
             pool = np.flatnonzero(np.isin(site_of, rest)).astype(np.int64)
-            trial = prune(complete(Cover(inst, kept), pool))
+            trial = prune(complete(Cover(inst, kept), pool, sensor_cost=sensor_cost))
             if trial.slack >= 0 and cost(trial) < cost(best):
                 best, closed = trial, True
                 in_use = set(site_of[best.chosen].tolist())
@@ -205,10 +243,17 @@ def prune(cover: Cover) -> Cover:
     return cover
 
 
-def swap_two_for_one(cover: Cover, pool: I64, by_point: sparse.csr_matrix | None = None) -> bool:
+def swap_two_for_one(
+    cover: Cover,
+    pool: I64,
+    by_point: sparse.csr_matrix | None = None,
+    sensor_cost: SensorCost = 1.0,
+) -> bool:
     """Replace two chosen candidates by one from ``pool`` (or by none) keeping the goal;
     True when a swap was made. Tries pairs in order of how few points they alone cover.
     ``by_point``: the pool's matrix transposed to rows of points (made if not given).
+    With a cost per candidate (``sensor_cost``, (C,)) the one must cost less than the
+    two; a site at the instance's cap takes it only in place of one of the two.
     """
     inst = cover.inst
     if by_point is None:
@@ -220,6 +265,7 @@ def swap_two_for_one(cover: Cover, pool: I64, by_point: sparse.csr_matrix | None
         key=lambda p: alone[p[0]] + alone[p[1]],
     )
     taken = np.isin(pool, chosen) if inst.multi else None
+    priced = np.ndim(sensor_cost) > 0
     for a, b in pairs:
         pa, pb = inst.covers(a), inst.covers(b)
         both = np.union1d(pa, pb)
@@ -236,6 +282,12 @@ def swap_two_for_one(cover: Cover, pool: I64, by_point: sparse.csr_matrix | None
         gains = np.asarray(by_point[back].sum(axis=0)).ravel()
         if taken is not None:  # k > 1: not a chosen candidate, save the two that leave
             gains[taken & ~np.isin(pool, (a, b))] = -1.0
+        if priced:
+            gains[cost_at(sensor_cost, pool) >= cost_at(sensor_cost, np.array([a, b])).sum()] = -1
+        if inst.cap is not None and inst.site_of is not None:
+            freed = {int(inst.site_of[a]), int(inst.site_of[b])}
+            full = [s for s in cover.at_site if cover.full(s) and s not in freed]
+            gains[np.isin(inst.site_of[pool], full)] = -1.0
         k = int(np.argmax(gains))
         if gains[k] >= need:
             cover.remove(a)
@@ -250,10 +302,11 @@ def pool_by_point(inst: CoverInstance, pool: I64) -> sparse.csr_matrix:
     return inst.matrix[pool].T.tocsr()
 
 
-def improve(cover: Cover, pool: I64) -> Cover:
-    """``prune`` and ``swap_two_for_one`` until neither makes the cover smaller."""
+def improve(cover: Cover, pool: I64, sensor_cost: SensorCost = 1.0) -> Cover:
+    """``prune`` and ``swap_two_for_one`` (with ``sensor_cost``) until neither makes
+    the cover smaller or cheaper."""
     prune(cover)
     by_point = pool_by_point(cover.inst, pool)
-    while swap_two_for_one(cover, pool, by_point):
+    while swap_two_for_one(cover, pool, by_point, sensor_cost):
         prune(cover)
     return cover

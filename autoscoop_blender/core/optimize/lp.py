@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import sparse
 
-from ..candidates import CandidateSet
+from ..candidates import CandidateSet, sensor_price
 from ..problem import Problem
 from .base import (
     PlanBound,
@@ -59,7 +59,16 @@ from .bound import (
     site_cover,
     split_cover_lp,
 )
-from .cover import Cover, CoverInstance, MastCost, close_sites, complete, improve
+from .cover import (
+    Cover,
+    CoverInstance,
+    MastCost,
+    SensorCost,
+    close_sites,
+    complete,
+    cost_at,
+    improve,
+)
 
 I64 = NDArray[np.int64]
 
@@ -105,8 +114,14 @@ def instance(
     coverable = int(np.count_nonzero(seen_by >= np.maximum(need, 1)))
     goal = min(problem.goal - int(np.count_nonzero(covered)), coverable)
     return CoverInstance(
-        matrix, goal, problem.grid.target_xy[~covered], need=np.maximum(need, 1).astype(np.int32)
+        matrix,
+        goal,
+        problem.grid.target_xy[~covered],
+        need=np.maximum(need, 1).astype(np.int32),
+        site_of=cands.position,
+        cap=problem.settings.max_sensors_per_mast,
     )
+
 
 
 def bound_scope(cands: CandidateSet, problem: Problem) -> str:
@@ -126,18 +141,23 @@ def plan_cost(
     chosen: list[int],
     objective: str,
     mc: float,
-    sc: float,
+    sc: SensorCost,
     standing: NDArray[np.bool_] | None = None,
+    cap: int | None = None,
 ) -> tuple[float, int]:
     """(objective value, new masts) of a plan of candidates: one mast per position
-    used, except where one stands already (``standing``, per position)."""
-    used = np.unique(cands.position[chosen]) if chosen else np.zeros(0, dtype=np.int64)
+    used, except where one stands already (``standing``, per position); a sensor
+    costs ``sc`` (one for all, or (C,) per candidate). inf for a plan with more than
+    ``cap`` candidates at one position."""
+    used, per = np.unique(cands.position[chosen], return_counts=True)
     masts = len(used) if standing is None else int(np.count_nonzero(~standing[used]))
+    if cap is not None and len(per) and int(per.max()) > cap:
+        return math.inf, masts
     if objective == "sensors":
         return float(len(chosen)), masts
     if objective == "masts":
         return masts + len(chosen) * 1e-6, masts  # the fewest sensors break ties
-    return mc * masts + sc * len(chosen), masts
+    return mc * masts + float(cost_at(sc, np.asarray(chosen, dtype=np.int64)).sum()), masts
 
 
 def _both(
@@ -163,16 +183,34 @@ def _both(
     return values[0], values[1]
 
 
-def mast_aware_costs(problem: Problem, n_candidates: int) -> tuple[MastCost, float]:
+def mast_aware_costs(
+    problem: Problem, cands: CandidateSet, n_candidates: int
+) -> tuple[MastCost, SensorCost]:
     """(mast, sensor) costs of the mast-aware MILP for the problem's objective; for
     masts, one mast outweighs every sensor there is. Where masts stand already, the
-    mast cost is per site, 0 on those."""
+    mast cost is per site, 0 on those; with models of different costs, the sensor
+    cost is per candidate (``sensor_price``)."""
     s = problem.settings
     if s.objective == "sensors":
         return 0.0, 1.0
     mast = float(n_candidates + 1) if s.objective == "masts" else s.mast_cost
-    sensor = 1.0 if s.objective == "masts" else s.sensor_cost
+    sensor = 1.0 if s.objective == "masts" else sensor_price(problem, cands)
     return _per_site(problem, mast), sensor
+
+
+def plan_value(problem: Problem, cands: CandidateSet, chosen: list[int]) -> float:
+    """The objective of a plan of candidates (``plan_cost`` with the problem's
+    settings; inf past the sensors-per-mast cap)."""
+    s = problem.settings
+    return plan_cost(
+        cands,
+        chosen,
+        s.objective,
+        s.mast_cost,
+        sensor_price(problem, cands),
+        _standing(problem),
+        s.max_sensors_per_mast,
+    )[0]
 
 
 def _per_site(problem: Problem, mast_cost: float) -> MastCost:
@@ -207,30 +245,25 @@ def masts_then_plan(
     )
     if not plan or (stop is not None and stop.is_set()):
         return sites, None
-    site_of, s = cands.position, problem.settings
+    site_of = cands.position
     site_sets = [on for on in (sites.sites, sites.lp_sites) if len(on)]
     if len(site_sets) == 2 and np.array_equal(site_sets[0], site_sets[1]):
         site_sets.pop()
     starts: list[Cover] = []
     for on in site_sets:
         pool = np.flatnonzero(np.isin(site_of, on)).astype(np.int64)
-        mc, sc = mast_aware_costs(problem, len(pool))
-        start = improve(complete(Cover(inst), pool, site_of, mc, sc), pool)
+        mc, sc = mast_aware_costs(problem, cands, len(pool))
+        start = improve(complete(Cover(inst), pool, site_of, mc, sc), pool, sc)
         start = close_sites(start, site_of, mc, sc)
         if start.slack >= 0:
             starts.append(start)
         yield None
     if not starts:
         return sites, None
-    start = min(
-        starts,
-        key=lambda c: plan_cost(
-            cands, c.chosen, s.objective, s.mast_cost, s.sensor_cost, _standing(problem)
-        )[0],
-    )
+    start = min(starts, key=lambda c: plan_value(problem, cands, c.chosen))
     used = np.unique(site_of[start.chosen])
     cols = milp_candidates(inst, site_of, used, start.chosen)
-    mc, sc = mast_aware_costs(problem, len(cols))
+    mc, sc = mast_aware_costs(problem, cands, len(cols))
     chosen = yield from sensors_on_sites(
         inst, site_of, used, start.chosen, mc, sc, deadline, stop, cols=cols
     )
@@ -266,13 +299,16 @@ def prove_bound(
     reports the greedy plan's objective and, as it rises, what the LP proves of the
     objective (sensor_cost x its bound for cost; nothing yet for masts)."""
     s = problem.settings
-    greedy = complete(Cover(inst), np.arange(len(cands), dtype=np.int64))
-    best = plan_cost(
-        cands, greedy.chosen, s.objective, s.mast_cost, s.sensor_cost, _standing(problem)
-    )[0]
-    per_sensor = {"cost": s.sensor_cost, "sensors": 1.0}.get(s.objective)
+    price = sensor_price(problem, cands) if s.objective == "cost" else 1.0
+    greedy = complete(Cover(inst), np.arange(len(cands), dtype=np.int64), sensor_cost=price)
+    best = plan_value(problem, cands, greedy.chosen)
+    # The LP counts sensors (unit costs), or with models of different costs, prices
+    # each candidate at its model's cost; the progress shows the cost it proves.
+    ones = np.ones(len(cands)) if np.ndim(price) == 0 else np.asarray(price)
+    unit = float(price) if np.ndim(price) == 0 else 1.0
+    per_sensor = {"cost": unit, "sensors": 1.0}.get(s.objective)
     n_parts = 1 if inst.xy is None else math.ceil(inst.n_points / PART_POINTS)
-    ones, initial = np.ones(len(cands)), np.array(greedy.chosen, dtype=np.int64)
+    initial = np.array(greedy.chosen, dtype=np.int64)
     if inst.xy is not None and n_parts > 1:
         part = parts_of(inst.xy, n_parts)
         lp_gen = split_cover_lp(
@@ -311,9 +347,7 @@ def prove_and_plan(
     s = problem.settings
 
     def value(plan: list[int]) -> float:
-        return plan_cost(
-            cands, plan, s.objective, s.mast_cost, s.sensor_cost, _standing(problem)
-        )[0]
+        return plan_value(problem, cands, plan)
 
     bound, lp, on_sites, greedy = yield from prove_bound(
         problem, cands, inst, solution, deadline, stop=stop, plan=True
@@ -321,7 +355,8 @@ def prove_and_plan(
     lower = bound.objective(s.objective, s.mast_cost, s.sensor_cost)
     plans = [greedy.chosen] + ([on_sites] if on_sites else [])
     yield solution.progress("search", problem.rho, bound=lower, best=min(map(value, plans)))
-    for plan in _lp_plans(inst, lp):
+    price = sensor_price(problem, cands) if s.objective == "cost" else 1.0
+    for plan in _lp_plans(inst, lp, price):
         plans.append(plan)
         yield solution.progress("search", problem.rho, bound=lower, best=min(map(value, plans)))
     return min(plans, key=value), bound
@@ -348,15 +383,30 @@ def _plan_bound(
     lp: LPSolution, sites: SiteSolution, cands: CandidateSet, problem: Problem
 ) -> PlanBound:
     s = problem.settings
+    price = sensor_price(problem, cands) if s.objective == "cost" else s.sensor_cost
+    per_site = _per_site(problem, s.mast_cost)
+    if np.ndim(price) == 0:
+        return PlanBound(
+            sensors=lp.integer_bound(),
+            masts=sites.bound,
+            lp=lp.bound,
+            scope=bound_scope(cands, problem),
+            rounds=lp.rounds,
+            cost_lp=mast_aware_bound(lp, cands.position, per_site, float(price)),
+            sensor_cost_lp=float(price) * lp.integer_bound(),
+        )
+    # The LP priced each candidate at its model's cost: it bounds the sensors' cost,
+    # and the count through the dearest model (no sensor costs more).
+    price = np.asarray(price)
+    dearest = float(price.max())
     return PlanBound(
-        sensors=lp.integer_bound(),
+        sensors=max(0, math.ceil(lp.bound / dearest - 1e-6)) if dearest > 0 else 0,
         masts=sites.bound,
         lp=lp.bound,
         scope=bound_scope(cands, problem),
         rounds=lp.rounds,
-        cost_lp=mast_aware_bound(
-            lp, cands.position, _per_site(problem, s.mast_cost), s.sensor_cost
-        ),
+        cost_lp=mast_aware_bound(lp, cands.position, per_site, 1.0, price),
+        sensor_cost_lp=lp.bound,
     )
 
 
@@ -365,12 +415,16 @@ def _pool(lp: LPSolution) -> I64:
     return np.union1d(lp.columns, np.flatnonzero(lp.reduced <= POOL_REDUCED_COST))
 
 
-def _lp_plans(inst: CoverInstance, lp: LPSolution) -> Iterator[list[int]]:
-    """Plans rounded from the LP at each threshold, completed and improved."""
+def _lp_plans(
+    inst: CoverInstance, lp: LPSolution, price: SensorCost = 1.0
+) -> Iterator[list[int]]:
+    """Plans rounded from the LP at each threshold, completed (per ``price``, one
+    sensor's cost) and improved."""
     pool = _pool(lp)
     for threshold in THRESHOLDS:
         kept = lp.columns[lp.x >= threshold - 1e-9]
-        cover = improve(complete(Cover(inst, tuple(int(c) for c in kept)), pool), pool)
+        cover = Cover(inst, tuple(int(c) for c in kept))
+        cover = improve(complete(cover, pool, sensor_cost=price), pool, price)
         if cover.slack >= 0:
             yield cover.chosen
 

@@ -1,0 +1,163 @@
+"""Mixed sensor packs (issue 16 point 3): models of different kinds and costs on one
+plan, a sensor kind a target area requires, and the sensors one mast may carry.
+Figures worked out by hand on a 30 m x 10 m flat target (1 m grid: 300 points, the
+97 % goal 291) watched straight down by square-footprint sensors."""
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import shapely
+
+from autoscoop_blender.core.errors import InputError
+from autoscoop_blender.core.model.scene import Area, SceneModel
+from autoscoop_blender.core.model.sensors import SensorPack
+from autoscoop_blender.core.run import Run
+from autoscoop_blender.core.settings import OptimizeSettings
+from autoscoop_blender.io.config import load_config
+from tests.core.flat import box_caster, down_camera, flat_scene
+
+CAMERA = down_camera(30.0)
+# The same square footprint from 20 m: 2 x 20 x tan(30 deg) = 23.09 m on a side.
+LIDAR = replace(CAMERA, kind="lidar", mount_height_m=20.0)
+TARGET = (0.0, 0.0, 30.0, 10.0)
+# From the 2 m lattice the camera (half side 5.77 m) covers 11 columns of 10 points
+# (110), the lidar at x = 12 (half side 11.55 m: centres 0.5 .. 23.5) 24 columns (240).
+# 291 points: three cameras (330 >= 291, two give 220), or one lidar and one camera
+# (the camera at x = 28 adds columns 24.5 .. 29.5: 60 >= 51); one lidar alone is short.
+
+
+def _plan(optimizer, lidar_cost, **kw):
+    settings = OptimizeSettings(optimizer=optimizer, objective="cost", mast_cost=0.0, **kw)
+    pack = SensorPack((CAMERA, LIDAR), (1.0, lidar_cost))
+    scene = flat_scene(target=TARGET, sensor=(-1, -1, 31, 11))
+    return Run(scene, box_caster(), pack, settings).result()
+
+
+def _kinds(result):
+    return sorted(s.model.kind for s in result.sensors)
+
+
+@pytest.mark.parametrize("optimizer", ["greedy", "lp"])
+def test_a_cheap_lidar_replaces_two_cameras(optimizer):
+    res = _plan(optimizer, 1.5)
+    assert _kinds(res) == ["camera", "lidar"]
+    assert res.metrics["cost"] == 2.5  # 1.5 + 1: cheaper than three cameras (3)
+    assert res.metrics["coverage_fraction"] >= 0.97
+    lidar = next(s for s in res.sensors if s.model.kind == "lidar")
+    assert lidar.z == 20.0 and lidar.covered_target_m2 >= 230.0  # on its own mount height
+
+
+@pytest.mark.parametrize("optimizer", ["greedy", "lp"])
+def test_a_dear_lidar_is_left_out(optimizer):
+    res = _plan(optimizer, 4.0)  # 1 lidar + 1 camera = 5 > 3 cameras
+    assert _kinds(res) == ["camera"] * 3
+    assert res.metrics["cost"] == 3.0
+
+
+def test_the_bound_holds_and_counts_costs():
+    res = _plan("lp", 1.5)
+    lower = res.metrics["lower_bound"]
+    # No plan costs less than 2.5 (above); the LP bound lies between what one lidar
+    # must pay for its share and the plan's cost.
+    assert 291 / 240 * 1.5 - 1e-6 <= lower <= 2.5
+    assert res.metrics["lp_bound"] == pytest.approx(lower, abs=1e-3)
+    # Sensors through the dearest model: at least ceil(lower / 1.5) = 2.
+    assert res.metrics["sensors_lower_bound"] == math.ceil(lower / 1.5 - 1e-6)
+
+
+def _two_area_scene():
+    """Targets: x 0..10 (any kind) and x 20..30 requiring a lidar, both 10 m deep."""
+    return SceneModel(
+        vertices=np.zeros((0, 3)),
+        faces=np.zeros((0, 3), dtype=np.int32),
+        occluders=(),
+        targets=(
+            Area("Target_Any", shapely.box(0, 0, 10, 10)),
+            Area("Target_Lidar", shapely.box(20, 0, 30, 10), require="lidar"),
+        ),
+        sensor_areas=(Area("SensorArea", shapely.box(-1, -1, 31, 11)),),
+    )
+
+
+@pytest.mark.parametrize("optimizer", ["greedy", "lp"])
+def test_an_area_that_requires_lidar_is_seen_by_lidars_only(optimizer):
+    settings = OptimizeSettings(optimizer=optimizer, objective="cost", mast_cost=0.0, rho=1.0)
+    pack = SensorPack((CAMERA, LIDAR), (1.0, 10.0))
+    res = Run(_two_area_scene(), box_caster(), pack, settings).result()
+    assert res.metrics["coverage_fraction"] == 1.0
+    xy = res.points[:, :2]
+    lidar_area = xy[:, 0] > 15
+    for s in res.sensors:
+        # What each sensor covers, from its footprint square: a camera's never
+        # counts in the lidar area.
+        half = s.z * math.tan(math.radians(30))
+        under = (abs(xy[:, 0] - s.x) <= half) & (abs(xy[:, 1] - s.y) <= half)
+        if s.model.kind == "camera":
+            assert s.covered_target_m2 == np.count_nonzero(under & ~lidar_area)
+    # Every point of the lidar area is covered, and some lidar stands over each.
+    lidars = [s for s in res.sensors if s.model.kind == "lidar"]
+    assert lidars
+    assert (res.n_covered[lidar_area] >= 1).all()
+
+
+def test_a_camera_covers_nothing_where_a_lidar_is_required():
+    settings = OptimizeSettings(optimizer="greedy", rho=1.0)
+    res = Run(_two_area_scene(), box_caster(), CAMERA, settings).result()
+    xy = res.points[:, :2]
+    assert (res.n_covered[xy[:, 0] > 15] == 0).all()  # the 100 lidar-only points
+    assert res.metrics["coverage_fraction"] == 0.5
+
+
+def test_the_es_refuses_a_mixed_pack():
+    pack = SensorPack((CAMERA, LIDAR), (1.0, 2.0))
+    scene = flat_scene(target=TARGET, sensor=(-1, -1, 31, 11))
+    with pytest.raises(InputError, match="es optimizer plans one sensor model"):
+        Run(scene, box_caster(), pack, OptimizeSettings(optimizer="es"))
+
+
+@pytest.mark.parametrize("optimizer", ["greedy", "lp"])
+@pytest.mark.parametrize("cap", [1, 2])
+def test_a_mast_carries_at_most_its_cap(optimizer, cap):
+    """One mast site (a sensor area smaller than the lattice) at the target's middle:
+    a tilted camera there sees one side; more sensors need more of the site."""
+    tilted = replace(CAMERA, pitch_min_deg=45.0, pitch_max_deg=45.0, range_m=60.0)
+    scene = flat_scene(target=(-15, -15, 15, 15), sensor=(-0.4, -0.4, 0.4, 0.4))
+    settings = OptimizeSettings(optimizer=optimizer, objective="sensors",
+                                max_sensors_per_mast=cap)  # fmt: skip
+    res = Run(scene, box_caster(), tilted, settings).result()
+    assert len(res.sensors) == cap  # the goal needs more; the mast takes no more
+    assert len(res.masts) == 1 and len(res.masts[0].sensors) == cap
+    assert res.metrics["coverage_fraction"] < 0.97
+
+
+def test_config_models_with_costs(tmp_path):
+    cfg = tmp_path / "pack.toml"
+    cfg.write_text(
+        'models = ["paper_camera", {preset = "roadside_lidar", sensor_cost = 4}]\n'
+        "max_sensors_per_mast = 3\n"
+    )
+    settings, pack = load_config(cfg)
+    assert isinstance(pack, SensorPack)
+    assert [m.kind for m in pack.models] == ["camera", "lidar"]
+    assert list(pack.cost_of(settings.sensor_cost)) == [1.0, 4.0]
+    assert settings.max_sensors_per_mast == 3
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ('model = "paper_camera"\nmodels = ["paper_camera"]\n', "either model or models"),
+        ("models = []\n", "non-empty list"),
+        ('models = ["paper_camera", "paper_camera"]\n', "models 2: the same model as entry 1"),
+        ('models = [{preset = "roadside_lidar", sensor_cost = -1}]\n', "sensor_cost"),
+        ('models = ["roadside_lidar", "no_such"]\n', "models 2: unknown sensor preset"),
+    ],
+)
+def test_config_models_refused_in_one_line(tmp_path, text, message):
+    cfg = tmp_path / "pack.toml"
+    cfg.write_text(text)
+    with pytest.raises(InputError, match=message) as err:
+        load_config(cfg)
+    assert "\n" not in str(err.value)
