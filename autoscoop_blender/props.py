@@ -23,7 +23,14 @@ from bpy.props import (
     StringProperty,
 )
 
-from .core.model.sensors import DORI_PX_PER_M, MAX_PX_AXIS, MAX_PX_PER_M, PRESETS, SensorModel
+from .core.model.sensors import (
+    DORI_PX_PER_M,
+    MAX_PX_AXIS,
+    MAX_PX_PER_M,
+    PRESETS,
+    SensorModel,
+    SensorPack,
+)
 from .core.settings import PANEL_SETTINGS, Setting
 
 _PRESET_ITEMS = [
@@ -181,6 +188,22 @@ class AUTOSCOOP_PG_settings(bpy.types.PropertyGroup):
         set=_set_dori,
     )
     flat_footprint: StringProperty(name="Flat footprint", default="")  # type: ignore[valid-type]
+    # A second model the plan may mix with the one above (a mixed pack), at its own cost.
+    mix_preset: EnumProperty(  # type: ignore[valid-type]
+        name="Mix with",
+        description="A second sensor model the lp and greedy optimizers may use beside "
+        "the one above (the ES plans one model)",
+        items=[("NONE", "None", "One model: the one above"), *_PRESET_ITEMS],
+        default="NONE",
+    )
+    mix_cost: FloatProperty(  # type: ignore[valid-type]
+        name="Its cost",
+        description="What one sensor of the second model costs, in the units of the mast "
+        "cost (the model above costs the sensor cost, 1 by default)",
+        default=4.0,
+        min=0.0,
+        soft_max=100.0,
+    )
     check_text: StringProperty(name="Scene check", default="")  # type: ignore[valid-type]
     # The check's notes: where the sensor areas offer no mast site, and why.
     check_notes: StringProperty(name="Scene notes", default="")  # type: ignore[valid-type]
@@ -208,6 +231,14 @@ class AUTOSCOOP_PG_settings(bpy.types.PropertyGroup):
         # As typed, not as Blender's single precision keeps it.
         values["min_px_per_m"] = float(f"{self.min_px_per_m:.7g}")
         return SensorModel(**values)
+
+    def sensor_pack(self) -> SensorModel | SensorPack:
+        """The model above, or a pack of it and the ``mix_preset`` model at
+        ``mix_cost`` (not yet validated)."""
+        model = self.sensor_model()
+        if self.mix_preset == "NONE":
+            return model
+        return SensorPack((model, PRESETS[self.mix_preset]), (None, float(f"{self.mix_cost:.7g}")))
 
 
 def knob_property(setting: Setting) -> Any:

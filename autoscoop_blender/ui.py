@@ -105,6 +105,10 @@ class AUTOSCOOP_PT_sensor(_Panel, bpy.types.Panel):
         row = layout.row()
         row.alert = text.startswith("invalid")
         row.label(text=text, icon="ERROR" if row.alert else "INFO")
+        # A mixed pack: a second model beside this one, at its own cost.
+        layout.prop(props, "mix_preset")
+        if props.mix_preset != "NONE":
+            layout.prop(props, "mix_cost")
 
 
 class AUTOSCOOP_PT_optimizer(_Panel, bpy.types.Panel):

@@ -1,8 +1,9 @@
 """The candidate set: positions x orientations x models, and what each covers.
 
 Every mast position of the problem's lattice times a grid of orientations (yaw every
-``yaw_step_deg``, pitch at ``pitches`` values spread over each model's limits) is a
-candidate. What each covers comes from the problem's exact cached ``targeted`` probe:
+``yaw_step_deg``, pitch at ``pitches`` values spread over each model's limits; one yaw
+for a level pattern that goes all the way round, ``problem.model_orientations``) times each
+model of the problem's pack is a candidate. What each covers comes from the problem's exact cached ``targeted`` probe:
 one numpy pass over all orientations per position, each sight ray cast once and only
 if some orientation needs it. The result is a sparse matrix, rows = candidates,
 columns = target points, 1 where the candidate covers the point; candidates that
@@ -30,7 +31,7 @@ from scipy import sparse
 from . import budget
 from .errors import InputError
 from .model.sensors import SensorModel, SensorPose, frame
-from .problem import Problem, orientations
+from .problem import Problem, model_orientations
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
@@ -77,7 +78,7 @@ def build_candidates(problem: Problem) -> Generator[int, None, CandidateSet]:
         return cached
     models = problem.models
     positions = problem.space.positions
-    angles = tuple(orientations(m.pitch_min_deg, m.pitch_max_deg) for m in models)
+    angles = tuple(model_orientations(m) for m in models)
     limit = budget.nonzero_limit(problem.settings.optimizer)
     nonzeros = 0
     # Column indices as int32, the matrix's own index type (scipy keeps them uncopied).

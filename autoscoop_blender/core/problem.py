@@ -48,6 +48,17 @@ def orientations(
     return np.array([(p, y) for p in ps for y in yaws])
 
 
+def model_orientations(model: SensorModel) -> F64:
+    """(O, 2) the candidate orientations of ``model`` (``orientations`` over its pitch
+    limits), with one yaw at pitch 0 for a pattern that goes all the way round (a
+    spinning lidar): level, it covers the same at every yaw (tilted, it does not:
+    it looks down on one side and up on the other)."""
+    angles = orientations(model.pitch_min_deg, model.pitch_max_deg)
+    if model.pattern == "angular" and model.h_fov_deg >= 360.0:
+        angles = angles[(angles[:, 0] != 0.0) | (angles[:, 1] == 0.0)]
+    return angles
+
+
 def run_estimate(
     scene: SceneModel,
     model: SensorModel,
@@ -62,7 +73,7 @@ def run_estimate(
     settings overrides the model's, as in ``Problem``."""
     if settings.min_density_per_m2 is not None:
         model = replace(model, min_density_per_m2=settings.min_density_per_m2)
-    angles = orientations(model.pitch_min_deg, model.pitch_max_deg)
+    angles = model_orientations(model)
 
     def oversample_at(grid_m: float) -> int:
         return settings.oversample or auto_oversample(model, grid_m)

@@ -17,6 +17,7 @@ from __future__ import annotations
 import json
 import math
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -28,7 +29,7 @@ from ..core.coverage.reference import reference_footprint_m2
 from ..core.errors import AutoscoopError, InputError
 from ..core.evaluate import evaluate_layout
 from ..core.model.scene import area_from_rings
-from ..core.model.sensors import SensorModel, SensorSpec
+from ..core.model.sensors import SensorModel, SensorPack, SensorSpec
 from ..core.optimize.base import Progress
 from ..core.result import Result
 from ..core.run import Run
@@ -72,6 +73,18 @@ _LAST: dict[str, tuple[Result, dict[str, Any], str]] = {}
 def model_from(props: Any) -> SensorModel:
     """The panel's sensor model, validated (InputError names the setting)."""
     return props.sensor_model().validated("Sensor")
+
+
+def pack_from(props: Any) -> SensorModel | SensorPack:
+    """The panel's model, or its mixed pack (the model and the "Mix with" one),
+    validated; InputError names the setting."""
+    pack = props.sensor_pack()
+    if isinstance(pack, SensorModel):
+        return pack.validated("Sensor")
+    main = pack.models[0].validated("Sensor")
+    if pack.models[1] == main:
+        return main  # mixed with itself: one model
+    return replace(pack, models=(main, pack.models[1]))
 
 
 def settings_from(props: Any) -> OptimizeSettings:
@@ -159,15 +172,17 @@ class OptimizeJob:
     def __init__(self, context: bpy.types.Context) -> None:
         props = context.scene.autoscoop
         self.scene_name = context.scene.name
-        self.model = model_from(props)
+        self.pack = pack_from(props)
+        self.model = SensorPack.of(self.pack).models[0]
         self.settings = settings_from(props)
-        self.scene_model = extract_scene(context.scene).cropped(self.model.range_m)
+        reach = max(m.range_m for m in SensorPack.of(self.pack).models)
+        self.scene_model = extract_scene(context.scene).cropped(reach)
         # Cameras the user marked as sensors stand already: the plan adds to them.
         existing = [camera_spec(o, self.model) for o in marked_cameras(context.scene)]
         self.run = Run(
             self.scene_model,
             BVHFactory.of(self.scene_model),
-            self.model,
+            self.pack,
             self.settings,
             existing=existing,
         )

@@ -161,3 +161,34 @@ def test_config_models_refused_in_one_line(tmp_path, text, message):
     with pytest.raises(InputError, match=message) as err:
         load_config(cfg)
     assert "\n" not in str(err.value)
+
+
+def test_a_level_spinning_lidar_is_one_candidate_per_position():
+    """A level 360 deg pattern covers the same points at every yaw: the candidate set
+    keeps yaw 0 only at pitch 0, and what it covers is what any other yaw covers. A
+    tilted one looks down on one side: every yaw stays, and they differ."""
+    from autoscoop_blender.core.candidates import build_candidates
+    from autoscoop_blender.core.model.sensors import ROADSIDE_LIDAR
+    from autoscoop_blender.core.problem import Problem
+
+    scene = flat_scene(target=(0, 0, 40, 10), sensor=(-1, -1, 1, 1))
+    problem = Problem(scene, box_caster()(), ROADSIDE_LIDAR, OptimizeSettings(optimizer="greedy"))
+    build = build_candidates(problem)
+    while True:
+        try:
+            next(build)
+        except StopIteration as done:
+            cands = done.value
+            break
+    (angles,) = cands.angles
+    level = angles[:, 0] == 0.0
+    assert angles[level].tolist() == [[0.0, 0.0]]
+    assert len(angles) == 1 + 5 * 36  # pitches 5, 10, .. 25 keep their 36 yaws
+    assert level[cands.orientation].any()  # the level one sees the target
+    for c in np.flatnonzero(level[cands.orientation]):
+        turned = replace(cands.pose(problem, c), yaw_deg=137.0)
+        assert sorted(problem.evaluate(turned).covered) == sorted(cands.matrix[c].indices)
+    tilted = replace(cands.pose(problem, 0), pitch_deg=25.0)
+    ahead = problem.evaluate(replace(tilted, yaw_deg=0.0)).covered  # towards the target
+    behind = problem.evaluate(replace(tilted, yaw_deg=180.0)).covered
+    assert len(ahead) > len(behind)
