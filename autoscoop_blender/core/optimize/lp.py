@@ -253,8 +253,14 @@ def masts_then_plan(
     for on in site_sets:
         pool = np.flatnonzero(np.isin(site_of, on)).astype(np.int64)
         mc, sc = mast_aware_costs(problem, cands, len(pool))
-        start = improve(complete(Cover(inst), pool, site_of, mc, sc), pool, sc)
-        start = close_sites(start, site_of, mc, sc)
+        start = complete(Cover(inst), pool, site_of, mc, sc)
+        if start.slack < 0:
+            # Full masts (the sensors-per-mast cap, which the fewest masts do not
+            # know of): the rest from every site, a new mast costing extra.
+            every = np.arange(len(cands), dtype=np.int64)
+            start = complete(start, every, site_of, mc, sc)
+            pool = np.flatnonzero(np.isin(site_of, site_of[start.chosen])).astype(np.int64)
+        start = close_sites(improve(start, pool, sc), site_of, mc, sc)
         if start.slack >= 0:
             starts.append(start)
         yield None
