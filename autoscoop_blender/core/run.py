@@ -46,10 +46,9 @@ class Run:
     may mix) on a scene (see module docstring).
 
     make_caster: builds the caster over the scene's occluders (worker processes call
-    it too). existing: sensors that stand already (world metres, the run's model):
-    each of a model of the run; they count toward coverage, are never moved or
-    dropped, cost nothing, and their
-    masts carry new sensors for the sensor cost alone. existing_masts: world (x, y)
+    it too). existing: sensors that stand already (world metres, each of one of the
+    run's models): they count toward coverage, are never moved or dropped, cost
+    nothing, and their masts carry new sensors for the sensor cost alone. existing_masts: world (x, y)
     of masts that stand with free slots: candidate sites where a new sensor adds no
     mast. Both join the search space. resume: records of sensors
     fixed by an earlier run with the same inputs (as given to ``on_fixed``); the run

@@ -6,9 +6,10 @@ its model's cost (with the ``cost`` objective and a pack of models of different
 costs; else per sensor) is fixed, each candidate at most once, except that one
 standing on a mast already used wins if it adds at least 1 / (1 + MAST_PREFERENCE)
 of the best (fewer masts for a few per cent of one sensor's coverage). A mast
-carrying ``max_sensors_per_mast`` sensors takes no more. Greedy set cover needs at most about ln(N)
-times the optimum number of the same candidates (N target points). Deterministic:
-the seed plays no part.
+carrying ``max_sensors_per_mast`` new sensors takes no more (sensors that stood
+already do not count against it). Greedy set cover needs at most about ln(N) times
+the optimum number of the same candidates (N target points). Deterministic: the seed
+plays no part.
 """
 
 from __future__ import annotations
