@@ -87,6 +87,7 @@ def optimize(args: argparse.Namespace) -> int:
         raise InputError(f"{out_dir}: exists and is not a folder")
 
     existing, existing_masts = read_existing(args.existing) if args.existing else ([], [])
+    SensorPack.of(model).check_optimizer(settings.optimizer)
     reach = max(m.range_m for m in SensorPack.of(model).models)
     scene, make_caster = load_scene(args.scene or default_scene(), reach)
     for w in scene.warnings:

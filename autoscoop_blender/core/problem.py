@@ -28,7 +28,6 @@ from .coverage.base import SensorCoverage
 from .coverage.cached import CachedTargetedEvaluator
 from .coverage.evaluator import Evaluator, make_evaluator
 from .coverage.pointcloud import auto_oversample
-from .errors import InputError
 from .geom.grid import GridArrays, GroundGrid
 from .geom.raycast import RayCaster
 from .model.scene import SceneModel
@@ -186,11 +185,7 @@ class Problem:
     ) -> None:
         self.settings = settings = settings.validated()
         pack = SensorPack.of(model)
-        if pack.mixed and settings.optimizer == "es":
-            raise InputError(
-                "the es optimizer plans one sensor model; a mixed pack needs "
-                "--optimizer greedy or lp"
-            )
+        pack.check_optimizer(settings.optimizer)
         # Each model's run is checked; the candidate build stops cleanly should their
         # sum outgrow the machine (``candidates.build_candidates``).
         estimates = [run_estimate(scene, m, settings, True, workers) for m in pack.models]

@@ -683,6 +683,14 @@ class SensorPack:
         """Whether the pack holds more than one model."""
         return len(self.models) > 1
 
+    def check_optimizer(self, optimizer: str) -> None:
+        """InputError when ``optimizer`` cannot plan this pack: the ES plans one model."""
+        if self.mixed and optimizer == "es":
+            raise InputError(
+                "the es optimizer plans one sensor model; a mixed pack needs "
+                "--optimizer greedy or lp"
+            )
+
     def cost_of(self, sensor_cost: float) -> NDArray[np.float64]:
         """(M,) the cost of one sensor of each model (None: ``sensor_cost``)."""
         return np.array([sensor_cost if c is None else c for c in self.costs], dtype=float)
