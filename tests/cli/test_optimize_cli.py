@@ -152,10 +152,11 @@ def test_output_files(default_run):
     rows = list(csv.DictReader((out / "sensors.csv").open()))
     assert list(rows[0]) == [
         "n", "x", "y", "z", "pitch_deg", "yaw_deg", "fitness", "target_covered_m2", "mast",
-        "existing",
+        "existing", "kind",
     ]  # fmt: skip
     assert len(rows) == len(res["sensors"])
     assert {r["existing"] for r in rows} == {"0"}  # a plan from scratch: all new
+    assert {r["kind"] for r in rows} == {res["model"]["kind"]}  # one model: its kind
     for row, s in zip(rows, res["sensors"]):
         assert float(row["x"]) == pytest.approx(s["x"], abs=1e-3)
         assert int(row["mast"]) == s["mast"]
