@@ -160,6 +160,28 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--poses", type=int, default=12, help="coverage: poses per method")
     bench.add_argument("--seed", type=int, default=0)
     bench.add_argument("--out", help="coverage: also write the figures to this JSON file")
+    bench.add_argument(
+        "--preferences",
+        type=_floats,
+        help="constants: greedy mast preferences for the cost objective, comma-separated "
+        "('' none; default 0 to 3)",
+    )
+    bench.add_argument(
+        "--objective-preferences",
+        type=_floats,
+        help="constants: the few for the sensors and masts objectives (default 0,0.1,0.4,1)",
+    )
+    bench.add_argument(
+        "--zetas", type=_floats, help="constants: ES zetas ('' none; default 0.02,0.05,0.1)"
+    )
+    bench.add_argument(
+        "--seeds", type=int, help="constants: ES seeds per zeta, from --seed on (default 4)"
+    )
+    bench.add_argument(
+        "--resume",
+        action="store_true",
+        help="constants: keep the runs of bench/constants.json, run only the missing ones",
+    )
     bench.add_argument("--out-dir", default="bench", help="where figures and runs go")
     bench.add_argument(
         "--paper-dir",
@@ -167,6 +189,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="optimize: output folder of the paper-faithful run (reused or resumed)",
     )
     return parser
+
+
+def _floats(text: str) -> tuple[float, ...]:
+    """``0,0.1,0.4`` -> (0.0, 0.1, 0.4); ``''`` -> ()."""
+    return tuple(float(t) for t in text.split(",") if t.strip())
 
 
 def _terminated(signum: int, frame: object) -> None:
