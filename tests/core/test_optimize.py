@@ -238,9 +238,16 @@ def test_greedy_prefers_a_mast_already_standing_when_it_adds_nearly_as_much():
     from autoscoop_blender.core.optimize.greedy import MAST_PREFERENCE, pick_candidate
 
     best = 100.0
-    near = best / (1 + MAST_PREFERENCE) + 1  # on a mast, just inside the preference
-    far = best / (1 + MAST_PREFERENCE) - 1  # on a mast, just outside it
-    assert pick_candidate(np.array([best, near]), np.array([False, True])) == 1
-    assert pick_candidate(np.array([best, far]), np.array([False, True])) == 0
-    # Without masts in play it is the plain largest gain, the first on ties.
-    assert pick_candidate(np.array([3.0, 7.0, 7.0]), np.zeros(3, bool)) == 1
+    on_mast = np.array([False, True])
+    for objective, p in MAST_PREFERENCE.items():
+        near = best / (1 + p) + 1  # on a mast, just inside the preference
+        far = best / (1 + p) - 1  # on a mast, just outside it
+        assert pick_candidate(np.array([best, near]), on_mast, objective) == 1
+        assert pick_candidate(np.array([best, far]), on_mast, objective) == 0
+        # Without masts in play it is the plain largest gain, the first on ties.
+        assert pick_candidate(np.array([3.0, 7.0, 7.0]), np.zeros(3, bool), objective) == 1
+    # The objective decides: fewer sensors prefer a standing mast less than cost does.
+    between = best / (1 + (MAST_PREFERENCE["cost"] + MAST_PREFERENCE["sensors"]) / 2)
+    assert pick_candidate(np.array([best, between]), on_mast, "cost") == 1
+    assert pick_candidate(np.array([best, between]), on_mast, "sensors") == 0
+    assert pick_candidate(np.array([best, between]), on_mast) == 1  # cost, the default
