@@ -2,11 +2,12 @@
 
 ``tests/data/two_routes_*.json`` hold what ``headless optimize`` gives on the bundled
 ``two_routes`` scene: the paper's ES with seed 0 (65 sensors on 57 masts, 97.11 %) and
-greedy (40 sensors on 24 masts, 97.04 %). First pinned before the core was reshaped
+greedy (45 sensors on 18 masts, 97.12 %). First pinned before the core was reshaped
 into stages (commit cac9cc0; 64 on 56 and 40 on 24); re-pinned at f3abf1a, when
 occluders came to be cropped by their exact distance: two faces 79.98 m from a sensor
 area, which the bounding-box crop had dropped, now stay and change a footprint by
-1 m^2 and, through it, the ES's path. A change that alters any pose, mast or covered
+1 m^2 and, through it, the ES's path; greedy re-pinned when its mast preference for
+the cost objective became 1 (``bench constants``; 40 on 24, 97.04 %, at 0.1). A change that alters any pose, mast or covered
 point fails here; one that means to change them must say so and regenerate the files.
 """
 

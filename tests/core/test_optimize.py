@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import shapely
 
-from autoscoop_blender.core.candidates import build_candidates, orientations
+from autoscoop_blender.core.candidates import build_candidates
 from autoscoop_blender.core.coverage.reference import reference_footprint_m2
 from autoscoop_blender.core.coverage.targeted import TargetedEvaluator
 from autoscoop_blender.core.geom.grid import GroundGrid
@@ -18,7 +18,7 @@ from autoscoop_blender.core.model.sensors import PAPER_CAMERA
 from autoscoop_blender.core.optimize.base import Solution
 from autoscoop_blender.core.optimize.es import EvolutionStrategy
 from autoscoop_blender.core.optimize.greedy import Greedy
-from autoscoop_blender.core.problem import Problem
+from autoscoop_blender.core.problem import Problem, orientations
 from autoscoop_blender.core.result import Result
 from autoscoop_blender.core.run import Run
 from autoscoop_blender.core.settings import ESParams, OptimizeSettings
