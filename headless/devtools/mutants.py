@@ -57,15 +57,19 @@ TESTS_FOR: dict[str, list[str]] = {
         "tests/core/test_footprint.py",
         "tests/core/test_cached.py",
     ],
+    # test_dori.py checks both evaluators' pixel-density answers against the closed form
+    # (and cover_many against single evaluations): ~25 s.
     "autoscoop_blender/core/coverage/targeted.py": [
         "tests/core/test_coverage.py",
         "tests/core/test_cached.py",
         "tests/core/test_footprint.py",
         "tests/core/test_optimize.py",
+        "tests/core/test_dori.py",
     ],
     "autoscoop_blender/core/coverage/cached.py": [
         "tests/core/test_cached.py",
         "tests/core/test_coverage.py",
+        "tests/core/test_dori.py",
     ],
     "autoscoop_blender/core/coverage/pointcloud.py": [
         "tests/core/test_coverage.py",

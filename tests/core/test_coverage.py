@@ -7,12 +7,13 @@ import numpy as np
 import pytest
 import shapely
 
-from autoscoop_blender.core.coverage.base import place, summarize
+from autoscoop_blender.core.coverage.base import footprint_polygon, place, summarize
+from autoscoop_blender.core.coverage.cached import CachedTargetedEvaluator
 from autoscoop_blender.core.coverage.pointcloud import PointcloudEvaluator
 from autoscoop_blender.core.coverage.targeted import TargetedEvaluator
 from autoscoop_blender.core.geom.grid import GroundGrid
-from autoscoop_blender.core.model.sensors import PAPER_CAMERA
-from tests.core.flat import flat_grid, flat_scene
+from autoscoop_blender.core.model.sensors import PAPER_CAMERA, ROADSIDE_LIDAR
+from tests.core.flat import down_camera, flat_grid, flat_scene
 
 BOX = ((10.0, -2.0, 0.0), (12.0, 6.0, 3.0))
 
@@ -154,3 +155,146 @@ def test_targeted_casts_no_ray_for_points_it_does_not_need(boxed):
         replace(PAPER_CAMERA, min_density_per_m2=0.0), pose
     )
     assert len(cov.covered) <= cov.rays < loose.rays
+
+
+# --- a camera straight down over flat ground: every answer by hand ------------------
+#
+# ``down_camera``: a pinhole 60 x 60 deg looking straight down (pitch 90, its only
+# allowed pitch, so the cached evaluator takes its cached path). It stands at (0.5, 0.5)
+# on a 1 m grid, whose cell centres lie at k + 0.5: every cell is at a whole offset
+# (a, b) from the mast. From h = 10 m it sees the square |a|, |b| <= h tan 30 deg =
+# 5.77 m: a, b in -5..5, 121 cells. Its pattern of N rays lands N / (4 tan^2 30 deg)
+# rays per steradian at cos^-3 t off the axis, and a steradian at angle t covers
+# r^2 / cos t = h^2 / cos^3 t m^2 of ground: N / (4 tan^2 30 deg h^2) points per m^2
+# everywhere in the square, 230.4 for the paper camera's 30,720 rays.
+
+EVALUATORS = [TargetedEvaluator, CachedTargetedEvaluator]
+DOWN_H = 10.0
+HALF_SIDE = DOWN_H * math.tan(math.radians(30.0))  # 5.77 m
+DOWN_CHI = 192 * 160 / (4 * math.tan(math.radians(30.0)) ** 2 * DOWN_H**2)  # 230.4
+
+
+def offsets(grid, ordinals):
+    """The whole offsets (a, b) from the mast at (0.5, 0.5) of target ordinals."""
+    xy = grid.target_xy[ordinals] - 0.5
+    assert np.allclose(xy, np.round(xy))
+    return sorted(map(tuple, np.round(xy).astype(int).tolist()))
+
+
+def lattice(keep, n=25):
+    """The whole offsets (a, b), |a|, |b| <= n, for which ``keep(a, b)`` holds."""
+    return sorted((a, b) for a in range(-n, n + 1) for b in range(-n, n + 1) if keep(a, b))
+
+
+def in_square(a, b, half=HALF_SIDE):
+    return abs(a) <= half and abs(b) <= half
+
+
+@pytest.mark.parametrize("evaluator", EVALUATORS)
+def test_straight_down_footprint_is_the_square_under_the_camera(evaluator):
+    """The target holds the square's half a >= 0 (66 cells); the other 55 cells of
+    the footprint lie outside it, at 1..5 m from the nearest target cell."""
+    model = down_camera(20.0)
+    grid, caster = flat_grid(spacing=1.0, target=(0, -20, 21, 21), reach=25.0)
+    ev = evaluator(grid, caster)
+    pose = place(grid, 0.5, 0.5, DOWN_H, 90.0, 0.0)
+    cov = ev.evaluate(model, pose)
+    assert offsets(grid, cov.covered) == lattice(lambda a, b: a >= 0 and in_square(a, b))
+    assert cov.chi == pytest.approx(np.full(66, DOWN_CHI), rel=1e-9)
+    assert cov.rays == 66  # one sight ray per point over the threshold
+    assert cov.pose == pose and cov.model == model and cov.method == "targeted"
+    # Not asked for: no visible set, no whole footprint, no outside cell.
+    assert cov.visible is None and cov.footprint_m2 is None and len(cov.outside) == 0
+    assert footprint_polygon(grid, cov).area == pytest.approx(66.0)
+    # Outside cells within 2 m of the target: the columns a = -1, -2.
+    band = ev.evaluate(model, pose, outside_band_m=2.0)
+    assert np.array_equal(np.sort(band.covered), np.sort(cov.covered))
+    assert len(band.outside) == 22 and band.footprint_m2 is None
+    assert np.array_equal(np.sort(grid.xy(band.outside)[:, 0] - 0.5), np.repeat([-2, -1], 11))
+    # All of it: the whole square, 121 m^2.
+    full = ev.evaluate(model, pose, outside_band_m=math.inf)
+    assert full.footprint_m2 == pytest.approx(121.0) and len(full.outside) == 55
+    assert footprint_polygon(grid, full).area == pytest.approx(121.0)
+
+
+WALL = ((2.8, -30.0, 0.0), (3.2, 30.0, 5.0))  # 5 m high, across the view at a = 2.3..2.7
+
+
+def shadowed(a, b):
+    """Similar triangles: the sight line from 10 m to a point a m away is at height
+    10 (1 - u / a) at u m; it clears the wall's far edge (u = 2.7) above 5 m for
+    a > 2.7 10 / (10 - 5) = 5.4, so the wall hides a in [2.7, 5.4]: a = 3, 4, 5."""
+    return 2.7 <= a <= 2.7 * DOWN_H / (DOWN_H - 5.0)
+
+
+@pytest.mark.parametrize("evaluator", EVALUATORS)
+def test_a_wall_hides_the_similar_triangles_shadow(evaluator):
+    grid, caster = flat_grid(spacing=1.0, boxes=[WALL], target=(-20, -20, 21, 21), reach=25.0)
+    ev = evaluator(grid, caster)
+    pose = place(grid, 0.5, 0.5, DOWN_H, 90.0, 0.0)
+    lit = lattice(lambda a, b: in_square(a, b) and not shadowed(a, b))
+    assert len(lit) == 121 - 33
+    cov = ev.evaluate(down_camera(20.0), pose)
+    assert offsets(grid, cov.covered) == lit
+    assert cov.rays == 121  # the shadowed points were asked too
+    # A threshold just over the square's 230.4 points/m^2: nothing is covered, but
+    # every point in view and in line of sight is visible, one ray per point in view.
+    strict = replace(down_camera(20.0), min_density_per_m2=DOWN_CHI * 1.001)
+    vis = ev.evaluate(strict, pose, visibility=True)
+    assert len(vis.covered) == 0 and offsets(grid, vis.visible) == lit
+    assert vis.rays == 121
+
+
+@pytest.mark.parametrize("evaluator", EVALUATORS)
+def test_a_point_at_exactly_the_range_is_covered(evaluator):
+    """3 m up with a range of 5 m, a 120 deg camera straight down reaches the ground
+    out to 4 m (3-4-5): the points 4 m away lie at exactly 5 m and count."""
+    model = replace(down_camera(5.0), h_fov_deg=120.0, v_fov_deg=120.0, mount_height_m=3.0)
+    grid, caster = flat_grid(spacing=1.0, target=(-20, -20, 21, 21), reach=25.0)
+    cov = evaluator(grid, caster).evaluate(model, place(grid, 0.5, 0.5, 3.0, 90.0, 0.0))
+    got = offsets(grid, cov.covered)
+    assert got == lattice(lambda a, b: a * a + b * b <= 16)
+    assert len(got) == 49 and (4, 0) in got and (0, -4) in got
+
+
+@pytest.mark.parametrize("evaluator", EVALUATORS)
+def test_a_camera_half_a_metre_up_covers_what_is_under_it(evaluator):
+    """0.5 m up it sees |a|, |b| <= 0.5 tan 30 deg = 0.29 m: on a 0.25 m grid the
+    3 x 3 cells around the mast (at (0.125, 0.125), a cell centre), all nearer than
+    1 m."""
+    grid, caster = flat_grid(spacing=0.25, target=(-2, -2, 2, 2), reach=5.0)
+    ev = evaluator(grid, caster)
+    cov = ev.evaluate(down_camera(5.0), place(grid, 0.125, 0.125, 0.5, 90.0, 0.0))
+    d = grid.target_xy[cov.covered] - 0.125
+    assert sorted(map(tuple, np.round(d / 0.25).astype(int).tolist())) == lattice(
+        lambda a, b: abs(a) <= 1 and abs(b) <= 1
+    )
+
+
+@pytest.mark.parametrize("evaluator", EVALUATORS)
+def test_a_lidar_on_the_ground_without_threshold_covers_the_disk(evaluator):
+    """A level 360 deg lidar at height 0 with no density threshold: every ground point
+    within its 6 m lies at elevation 0, in its FoV and (its own ground never blocks
+    it) in sight; its density there is 0, which the threshold 0 accepts. The disk
+    a^2 + b^2 <= 36 without the mast's own cell (distance 0): 113 - 1 points."""
+    model = replace(ROADSIDE_LIDAR, min_density_per_m2=0.0, range_m=6.0)
+    grid, caster = flat_grid(spacing=1.0, target=(-20, -20, 21, 21), reach=25.0)
+    cov = evaluator(grid, caster).evaluate(model, place(grid, 0.5, 0.5, 0.0, 0.0, 0.0))
+    assert offsets(grid, cov.covered) == lattice(lambda a, b: 0 < a * a + b * b <= 36)
+    assert len(cov.covered) == 112 and np.all(cov.chi == 0.0)
+
+
+@pytest.mark.parametrize("evaluator", EVALUATORS)
+def test_straight_down_pixel_density_is_f_over_h(evaluator):
+    """Straight down every ground point is at depth h along the axis, so its pixel
+    density is sqrt(f^2 h / h^3) = f / h (``sensors`` docstring): with 1000 x 1000 px
+    on 60 deg, f = 500 / tan 30 deg = 866.0 px and f / h = 86.6 px/m from 10 m. A
+    level under that covers the whole square, one over it nothing."""
+    f = 500.0 / math.tan(math.radians(30.0))
+    grid, caster = flat_grid(spacing=1.0, target=(-20, -20, 21, 21), reach=25.0)
+    ev = evaluator(grid, caster)
+    pose = place(grid, 0.5, 0.5, DOWN_H, 90.0, 0.0)
+    for level, square in ((0.99 * f / DOWN_H, lattice(in_square)), (1.01 * f / DOWN_H, [])):
+        model = replace(down_camera(20.0), resolution_px=(1000, 1000), min_px_per_m=level)
+        cov = ev.evaluate(model.validated("test"), pose)
+        assert offsets(grid, cov.covered) == square
