@@ -258,6 +258,23 @@ def test_a_point_at_exactly_the_range_is_covered(evaluator):
 
 
 @pytest.mark.parametrize("evaluator", EVALUATORS)
+def test_a_point_on_the_fovs_corner_ray_is_covered(evaluator):
+    """A 2 atan(1/2) = 53.13 deg square pinhole straight down from 10 m sees
+    |a|, |b| <= 5: the four points (+-5, +-5) lie exactly on its corner rays, and
+    count (in up to and including the edge). The cached evaluator's reach once lost
+    them: its depression band had no tolerance, and arcsin put them an ulp outside."""
+    fov = math.degrees(2 * math.atan(0.5))
+    model = replace(down_camera(50.0), h_fov_deg=fov, v_fov_deg=fov)
+    grid, caster = flat_grid(spacing=1.0, target=(-20, -20, 21, 21), reach=25.0)
+    ev = evaluator(grid, caster)
+    for h, side in ((10.0, 5), (12.0, 6)):
+        cov = ev.evaluate(model, place(grid, 0.5, 0.5, h, 90.0, 0.0))
+        got = offsets(grid, cov.covered)
+        assert got == lattice(lambda a, b, n=side: abs(a) <= n and abs(b) <= n)
+        assert (side, side) in got and (-side, side) in got
+
+
+@pytest.mark.parametrize("evaluator", EVALUATORS)
 def test_a_camera_half_a_metre_up_covers_what_is_under_it(evaluator):
     """0.5 m up it sees |a|, |b| <= 0.5 tan 30 deg = 0.29 m: on a 0.25 m grid the
     3 x 3 cells around the mast (at (0.125, 0.125), a cell centre), all nearer than

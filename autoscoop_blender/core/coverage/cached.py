@@ -67,6 +67,8 @@ class _Reach:
 
 # Ray answers per row of a _Reach: not asked yet, blocked, clear.
 _UNKNOWN, _BLOCKED, _CLEAR = -1, 0, 1
+# How much wider than the FoV's largest off-axis angle the depression band is (rad).
+_BAND_MARGIN_RAD = 1e-6
 
 
 class CachedTargetedEvaluator:
@@ -199,8 +201,10 @@ class CachedTargetedEvaluator:
         cells, ordinal = cells_in_reach(self.grid, s, model.range_m, outside_band_m)
         lines = sight_lines(self.grid, s, cells, pixels=model.resolution_px is not None)
         # Could any allowed orientation cover the point? In range, dense enough at
-        # the pattern's densest direction, within the reachable depression band.
-        reach = math.radians(model.max_off_axis_deg())
+        # the pattern's densest direction, within the reachable depression band. The
+        # band is a hair (1e-6 rad) wider than the FoV: arcsin's rounding must not drop
+        # a point on a corner ray that the FoV test (its own 1e-9 tolerance) keeps.
+        reach = math.radians(model.max_off_axis_deg()) + _BAND_MARGIN_RAD
         depression = -np.arcsin(np.clip(lines.d[:, 2], -1.0, 1.0))
         band = (depression >= math.radians(model.pitch_min_deg) - reach) & (
             depression <= math.radians(model.pitch_max_deg) + reach
