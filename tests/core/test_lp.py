@@ -302,6 +302,143 @@ def test_greedy_per_cost_and_closing_masts():
     assert sorted(close_sites(Cover(inst, (3, 4)), site_of, 0.5, 1.0).chosen) == [3, 4]
 
 
+
+# --- the cover moves on instances small enough to follow by hand -------------------
+
+
+def test_counts_go_back_down_when_a_candidate_leaves():
+    inst = instance([range(0, 5), range(3, 8)], 8, 8)
+    cover = Cover(inst, (0, 1))
+    assert cover.n_covered == 8 and cover.count.tolist() == [1, 1, 1, 2, 2, 1, 1, 1]
+    cover.remove(1)
+    assert cover.count.tolist() == [1] * 5 + [0] * 3 and cover.n_covered == 5
+    cover.remove(0)
+    assert not cover.count.any() and cover.n_covered == 0 and cover.slack == -8
+
+
+def test_greedy_stops_at_the_goal_and_when_nothing_adds():
+    """Points 0-9: candidate 0 = {0-4}, 1 = {5-9}. A goal of 5 is met by 0 alone
+    (candidate 1 would add 5 more, not wanted). Point 10 no candidate covers: goal 11
+    is out of reach, so greedy stops after 0 and 1, with each once, and no candidate
+    that adds nothing."""
+    rows = [range(0, 5), range(5, 10), range(0, 3)]
+    assert complete(Cover(instance(rows, 11, 5)), np.arange(3)).chosen == [0]
+    short = complete(Cover(instance(rows, 11, 11), (0,)), np.arange(3))
+    assert short.chosen == [0, 1] and short.slack == -1
+
+
+def test_greedy_picks_by_the_gains_left():
+    """0 = {0-5}, 1 = {0-4}, 2 = {6-8}: after 0, candidate 1 adds nothing (its five
+    points are covered), 2 adds three: greedy takes 0 then 2."""
+    inst = instance([range(0, 6), range(0, 5), range(6, 9)], 9, 9)
+    assert complete(Cover(inst), np.arange(3)).chosen == [0, 2]
+
+
+def test_greedy_with_k2_never_takes_a_candidate_twice():
+    """Every k = 2; A = {0-9} is chosen. A would gain all ten points again, but a
+    candidate counts once: C (9 points) then B (point 0)."""
+    inst = CoverInstance(
+        instance([range(10), [0], range(1, 10)], 10, 10).matrix, 10, need=np.full(10, 2, np.int32)
+    )
+    cover = complete(Cover(inst, (0,)), np.arange(3))
+    assert cover.chosen == [0, 2, 1] and cover.slack == 0
+
+
+def test_greedy_per_cost_depends_on_cost_ratios_and_mast_costs_per_site():
+    """``test_greedy_per_cost_and_closing_masts``'s instance. Costs a tenth as large
+    (mast 0.3, sensor 0.1) choose as mast 3, sensor 1: [0, 1, 2]. Without costs given,
+    plain greedy: [0, 4, 1]. With a mast already at site 2 (cost 0 there, 3 at the
+    others), candidate 4 costs one sensor for 6 new points: [0, 4, 1]; a cost of 3 at
+    every site gives what the number 3 does."""
+    rows = [range(0, 4), range(4, 8), range(8, 12), range(0, 6), range(6, 12)]
+    inst = instance(rows, 12, 12)
+    site_of = np.array([0, 0, 0, 1, 2])
+    every = np.arange(5)
+    assert complete(Cover(inst, (0,)), every, site_of, 0.3, 0.1).chosen == [0, 1, 2]
+    assert complete(Cover(inst, (0,)), every, site_of).chosen == [0, 4, 1]
+    there = np.array([3.0, 3.0, 0.0])
+    assert complete(Cover(inst, (0,)), every, site_of, there, 1.0).chosen == [0, 4, 1]
+    dear = np.full(3, 3.0)
+    assert complete(Cover(inst, (0,)), every, site_of, dear, 1.0).chosen == [0, 1, 2]
+
+
+def test_greedy_per_cost_prices_only_the_new_masts_site_down():
+    """Points 0-13; site 0: 0 = {0-3}, 1 = {4-7}, 2 = {8-12}; site 1: 3 = {4-7, 13}.
+    Mast 10, sensor 1, from 0: 2 (5 per 1), then 1 (4 per 1; 3 gives 5 per 11), then
+    3 for point 13 alone. Taking a sensor on site 0 must not make site 1 cheap."""
+    inst = instance([range(0, 4), range(4, 8), range(8, 13), [4, 5, 6, 7, 13]], 14, 14)
+    site_of = np.array([0, 0, 0, 1])
+    got = complete(Cover(inst, (0,)), np.arange(4), site_of, 10.0, 1.0)
+    assert got.chosen == [0, 2, 1, 3]
+
+
+def test_prune_drops_a_redundant_candidate_wherever_it_is():
+    """``test_cover_moves_keep_the_goal``'s cover with the essential 1 listed first:
+    0 still goes."""
+    rows = [range(0, 5), range(5, 10), range(3, 7), range(0, 10), range(0, 3)]
+    cover = prune(Cover(instance(rows, 10, 10), (1, 0, 2, 4)))
+    assert cover.chosen == [1, 2, 4] and cover.slack == 0
+
+
+def test_swap_drops_two_without_a_third_when_the_slack_allows():
+    """0 = {0-4}, 1 = {5-9}, 2 = {0}, 3 = {5}: 2 and 3 alone cover nothing, so the
+    pair goes for no candidate, the goal (10, slack 0; 9, slack 1) still met."""
+    rows = [range(0, 5), range(5, 10), [0], [5]]
+    for goal in (10, 9):
+        cover = Cover(instance(rows, 10, goal), (0, 1, 2, 3))
+        assert swap_two_for_one(cover, np.arange(4))
+        assert cover.chosen == [0, 1] and cover.slack == 10 - goal
+
+
+def test_swap_tries_the_pair_that_covers_least_alone_first():
+    """0 = {0-4}, 1 = {5}, 2 = {6, 7}, 3 = {8, 9}, alone 5, 1, 2, 2; pool 4 = {0-5},
+    5 = {5, 6, 7}. Both (0, 1) (six points, 4 brings them back) and (1, 2) (three, 5)
+    could go; (1, 2) alone covers fewer, so it goes first."""
+    rows = [range(0, 5), [5], [6, 7], [8, 9], range(0, 6), [5, 6, 7]]
+    cover = Cover(instance(rows, 10, 10), (0, 1, 2, 3))
+    assert swap_two_for_one(cover, np.array([4, 5]))
+    assert cover.chosen == [0, 3, 5] and cover.slack == 0
+
+
+
+def test_swap_never_breaks_the_goal():
+    """0 = {0-4}, 1 = {5}, 2 = {5}, goal 6 of points 0-6: the pair (1, 2) loses point
+    5, one more than the slack (0), and the pool (3 = {6}) brings nothing back;
+    every other pair loses five: no swap."""
+    cover = Cover(instance([range(0, 5), [5], [5], [6]], 7, 6), (0, 1, 2))
+    assert not swap_two_for_one(cover, np.array([3]))
+    assert cover.chosen == [0, 1, 2] and cover.slack == 0
+
+
+def test_swap_with_k2_never_brings_back_a_chosen_candidate():
+    """Every k = 2, points 0-3: A = {0-3}, B = {0, 1}, C = {2, 3} chosen, E = {0-3} in
+    the pool. Dropping B and C leaves each point once; A would bring all four back,
+    but A is chosen already (it would count twice): E replaces them."""
+    rows = [range(4), [0, 1], [2, 3], range(4)]
+    inst = CoverInstance(instance(rows, 4, 4).matrix, 4, need=np.full(4, 2, np.int32))
+    cover = Cover(inst, (0, 1, 2))
+    assert swap_two_for_one(cover, np.arange(4))
+    assert cover.chosen == [0, 3] and cover.slack == 0 and cover.count.tolist() == [2] * 4
+
+def test_improve_swaps_then_prunes_to_one():
+    """``test_cover_moves_keep_the_goal``'s moves through ``improve``: [3]."""
+    rows = [range(0, 5), range(5, 10), range(3, 7), range(0, 10), range(0, 3)]
+    cover = improve(Cover(instance(rows, 10, 10), (0, 1, 2, 4)), np.arange(5))
+    assert cover.chosen == [3]
+
+
+def test_closing_a_site_must_lower_the_cost():
+    """Points 0-5; site 0: 0 = {0-2}, 1 = {3, 4}, 2 = {5}; site 1: 3 = {3-5}. From
+    (0, 3), closing site 1 gives (0, 1, 2): one mast and three sensors against two and
+    two, cheaper when the mast costs more than a sensor (1.5 against 1), not when it
+    costs less (0.5), and at a tie (1 and 1) the plan stays."""
+    inst = instance([range(0, 3), [3, 4], [5], range(3, 6)], 6, 6)
+    site_of = np.array([0, 0, 0, 1])
+    for mast, want in ((1.5, [0, 1, 2]), (0.5, [0, 3]), (1.0, [0, 3])):
+        got = close_sites(Cover(inst, (0, 3)), site_of, mast, 1.0)
+        assert sorted(got.chosen) == want and got.slack == 0
+
+
 def _scene(targets, areas, boxes=()):
     vertices, faces = box_mesh(list(boxes))
     return SceneModel(
