@@ -20,6 +20,7 @@ ROLE_TARGET = "target"  # a curve: target area
 ROLE_SENSOR_AREA = "sensor_area"  # a curve: sensor area
 ROLE_NO_MAST = "no_mast"  # a curve: a hole in the sensor areas (escape lane, pipeline)
 ROLE_SENSOR = "sensor"  # a camera: a sensor to evaluate
+ROLE_MAST = "mast"  # an empty: a mast that stands already, with free slots
 ROLE_NONE = "none"  # unmarked: not an area even if the name says so
 IGNORE_PROP = "autoscoop_ignore"  # True: the mesh does not occlude
 OVERHANG_PROP = "autoscoop_overhang"  # True: occludes, but nothing stands on it

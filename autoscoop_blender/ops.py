@@ -148,12 +148,13 @@ class AUTOSCOOP_OT_mark(bpy.types.Operator):
             (names.ROLE_SENSOR_AREA, "Sensor area", "Selected curves: where masts may stand"),
             (names.ROLE_NO_MAST, "No-mast zone", "Selected curves: where masts may not stand"),
             (names.ROLE_SENSOR, "Sensor", "Selected cameras: sensors to evaluate"),
+            (names.ROLE_MAST, "Standing mast", "Selected empties: masts that stand already"),
             (names.ROLE_NONE, "Unmark", "Selected objects: no role, whatever their name"),
         ],
     )
 
     def execute(self, context: bpy.types.Context) -> set[str]:
-        wanted = "CAMERA" if self.role == names.ROLE_SENSOR else "CURVE"
+        wanted = {names.ROLE_SENSOR: "CAMERA", names.ROLE_MAST: "EMPTY"}.get(self.role, "CURVE")
         chosen = list(context.selected_objects)
         if not chosen:
             self.report({"ERROR"}, "Nothing selected")

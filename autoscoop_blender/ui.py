@@ -57,6 +57,7 @@ class AUTOSCOOP_PT_scene(_Panel, bpy.types.Panel):
         row.operator(names.OP_MARK, text="No Mast").role = names.ROLE_NO_MAST
         row = col.row(align=True)
         row.operator(names.OP_MARK, text="Camera as Sensor").role = names.ROLE_SENSOR
+        row.operator(names.OP_MARK, text="Empty as Mast").role = names.ROLE_MAST
         row.operator(names.OP_MARK, text="Unmark").role = names.ROLE_NONE
         layout.operator(names.OP_CHECK, icon="VIEWZOOM")
         layout.operator(names.OP_IMPORT_XODR, text="Import OpenDRIVE...", icon="IMPORT")

@@ -177,14 +177,17 @@ class OptimizeJob:
         self.settings = settings_from(props)
         reach = max(m.range_m for m in SensorPack.of(self.pack).models)
         self.scene_model = extract_scene(context.scene).cropped(reach)
-        # Cameras the user marked as sensors stand already: the plan adds to them.
+        # Cameras the user marked as sensors stand already: the plan adds to them; so
+        # do empties marked as masts, with free slots.
         existing = [camera_spec(o, self.model) for o in marked_cameras(context.scene)]
+        masts = marked_masts(context.scene)
         self.run = Run(
             self.scene_model,
             BVHFactory.of(self.scene_model),
             self.pack,
             self.settings,
             existing=existing,
+            existing_masts=masts,
         )
         self.steps = self.run.steps()
         self.progress = Progress("search", 0, 0.0, self.settings.rho, 0, 0)
@@ -273,6 +276,19 @@ def marked_cameras(scene: bpy.types.Scene) -> list[bpy.types.Object]:
         if o.type == "CAMERA" and o.get(names.ROLE_PROP) == names.ROLE_SENSOR
     ]  # fmt: skip
     return sorted(marked, key=lambda o: o.name)
+
+
+def marked_masts(scene: bpy.types.Scene) -> list[tuple[float, float]]:
+    """World (x, y) of the empties the user marked as masts that stand already
+    (``autoscoop_role = "mast"``), by name: sites where a new sensor adds no mast."""
+    marked = [
+        o for o in scene.objects
+        if o.type == "EMPTY" and o.get(names.ROLE_PROP) == names.ROLE_MAST
+    ]  # fmt: skip
+    return [
+        (float(o.matrix_world.translation.x), float(o.matrix_world.translation.y))
+        for o in sorted(marked, key=lambda o: o.name)
+    ]
 
 
 def camera_spec(obj: bpy.types.Object, fallback: SensorModel) -> SensorSpec:

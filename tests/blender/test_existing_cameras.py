@@ -46,3 +46,30 @@ def test_a_marked_camera_is_kept_and_flagged():
     assert spawned[0] is not cam
     # The user's camera is untouched.
     assert tuple(cam.location) == pytest.approx((-8.0, 0.0, 7.0))
+
+
+def test_an_empty_marked_as_mast_carries_new_sensors_at_no_mast_cost():
+    """The plan from scratch puts its first mast somewhere; an empty marked as a
+    standing mast there makes that mast an existing one: 3 cheaper, flagged."""
+    bpy.ops.wm.open_mainfile(filepath=str(SAMPLES / "flat_wall.blend"))
+    props = bpy.context.scene.autoscoop
+    props.optimizer, props.rho = "greedy", 0.6
+    scratch = pipeline.OptimizeJob(bpy.context).finish(bpy.context)
+    first = scratch["masts"][0]
+    bpy.ops.wm.open_mainfile(filepath=str(SAMPLES / "flat_wall.blend"))
+    props = bpy.context.scene.autoscoop
+    props.optimizer, props.rho = "greedy", 0.6
+    empty = bpy.data.objects.new("Mast_Standing", None)
+    bpy.context.scene.collection.objects.link(empty)
+    empty.location = (first["x"], first["y"], 0.0)
+    bpy.ops.object.select_all(action="DESELECT")
+    empty.select_set(True)
+    assert bpy.ops.autoscoop.mark(role=names.ROLE_MAST) == {"FINISHED"}
+    assert empty[names.ROLE_PROP] == names.ROLE_MAST
+    doc = pipeline.OptimizeJob(bpy.context).finish(bpy.context)
+    standing = [m for m in doc["masts"] if m["existing"]]
+    assert [(m["x"], m["y"]) for m in standing] == [(first["x"], first["y"])]
+    assert doc["metrics"]["existing_masts"] == 1 and doc["metrics"]["existing_sensors"] == 0
+    # The same plan (greedy prefers a standing mast as one in use): one mast less paid.
+    assert len(doc["sensors"]) == len(scratch["sensors"])
+    assert doc["metrics"]["cost"] == scratch["metrics"]["cost"] - 3.0
