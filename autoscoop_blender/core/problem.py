@@ -188,8 +188,9 @@ class Problem:
         pack.check_optimizer(settings.optimizer)
         # Each model's run is checked; the candidate build stops cleanly should their
         # sum outgrow the machine (``candidates.build_candidates``).
-        estimates = [run_estimate(scene, m, settings, True, workers) for m in pack.models]
-        self.estimate = estimates[0]
+        for other in pack.models[1:]:
+            run_estimate(scene, other, settings, check=True, workers=workers)
+        self.estimate = run_estimate(scene, pack.models[0], settings, True, workers)
         if settings.min_density_per_m2 is not None:
             density = settings.min_density_per_m2
             models = tuple(replace(m, min_density_per_m2=density) for m in pack.models)

@@ -403,7 +403,7 @@ def _draw_map(ax: Axes, result: Result, k: int) -> None:
         _patches(areas, facecolor=SENSOR_AREA_FILL, edgecolor=SENSOR_AREA_EDGE, linewidth=1.0,
                  zorder=1.5)
     )  # fmt: skip
-    for fill, footprints in _footprints_by_colour(result):
+    for _, fill, footprints in _footprints_by_colour(result):
         ax.add_collection(
             _patches(footprints, facecolor=fill, alpha=FOOTPRINT_ALPHA, edgecolor="none",
                      zorder=2)
@@ -446,9 +446,9 @@ def _draw_map(ax: Axes, result: Result, k: int) -> None:
         )
 
 
-def _footprints_by_colour(result: Result) -> list[tuple[str, list[Any]]]:
-    """(fill colour, non-empty footprints) per sensor kind when the plan mixes kinds
-    (``KIND_FILL``), else one entry in the footprint blue."""
+def _footprints_by_colour(result: Result) -> list[tuple[str | None, str, list[Any]]]:
+    """(kind, fill colour, non-empty footprints) per sensor kind when the plan mixes
+    kinds (``KIND_FILL``), else one entry (kind None) in the footprint blue."""
     kinds = sorted({s.model.kind for s in result.sensors}, key=list(KIND_FILL).index)
     out = []
     for kind in kinds if len(kinds) > 1 else [None]:
@@ -459,7 +459,7 @@ def _footprints_by_colour(result: Result) -> list[tuple[str, list[Any]]]:
             if not s.footprint.is_empty and kind in (None, s.model.kind)
         ]
         if shapes:
-            out.append((fill, shapes))
+            out.append((kind, fill, shapes))
     return out
 
 
@@ -561,9 +561,7 @@ def _legend_handles(result: Result, k: int) -> list[Any]:
             Patch(fc=UNCOVERED, label=f"target not covered: {gaps * result.cell_m**2:,.0f} m²"
                   f" ({100 * gaps / len(n):.1f} %);\nlabels: the largest gaps")
         )  # fmt: skip
-    groups = _footprints_by_colour(result)
-    for fill, shapes in groups:
-        kind = next((k for k, c in KIND_FILL.items() if c == fill), "") if len(groups) > 1 else ""
+    for kind, fill, shapes in _footprints_by_colour(result):
         what = f"{kind} footprints" if kind else "sensor footprints"
         handles.append(
             Patch(fc=fill, alpha=FOOTPRINT_ALPHA, ec=FOOTPRINT_EDGE, lw=0.5,

@@ -17,6 +17,7 @@ from autoscoop_blender.core.run import Run
 from autoscoop_blender.core.settings import OptimizeSettings
 from autoscoop_blender.io.config import load_config
 from tests.core.flat import box_caster, down_camera, flat_scene
+from tests.core.test_lp import drain
 
 CAMERA = down_camera(30.0)
 # The same square footprint from 20 m: 2 x 20 x tan(30 deg) = 23.09 m on a side.
@@ -173,13 +174,7 @@ def test_a_level_spinning_lidar_is_one_candidate_per_position():
 
     scene = flat_scene(target=(0, 0, 40, 10), sensor=(-1, -1, 1, 1))
     problem = Problem(scene, box_caster()(), ROADSIDE_LIDAR, OptimizeSettings(optimizer="greedy"))
-    build = build_candidates(problem)
-    while True:
-        try:
-            next(build)
-        except StopIteration as done:
-            cands = done.value
-            break
+    cands = drain(build_candidates(problem))
     (angles,) = cands.angles
     level = angles[:, 0] == 0.0
     assert angles[level].tolist() == [[0.0, 0.0]]
