@@ -75,9 +75,27 @@ TESTS_FOR: dict[str, list[str]] = {
         "tests/core/test_coverage.py",
         "tests/core/test_footprint.py",
     ],
-    "autoscoop_blender/core/optimize/greedy.py": ["tests/core/test_optimize.py"],
-    "autoscoop_blender/core/optimize/lp.py": ["tests/core/test_lp.py"],
-    "autoscoop_blender/core/optimize/cover.py": ["tests/core/test_lp.py"],
+    # test_mixed_pack.py holds the per-model costs and the sensors-per-mast cap that
+    # greedy, the cover moves, the bound's rows and the lp pipeline all take.
+    "autoscoop_blender/core/optimize/greedy.py": [
+        "tests/core/test_greedy.py",
+        "tests/core/test_optimize.py",
+        "tests/core/test_mixed_pack.py",
+    ],
+    "autoscoop_blender/core/optimize/lp.py": [
+        "tests/core/test_lp.py",
+        "tests/core/test_mixed_pack.py",
+        "tests/core/test_k_coverage.py",
+    ],
+    "autoscoop_blender/core/optimize/cover.py": [
+        "tests/core/test_lp.py",
+        "tests/core/test_mixed_pack.py",
+    ],
+    "autoscoop_blender/core/optimize/bound.py": [
+        "tests/core/test_lp.py",
+        "tests/core/test_mixed_pack.py",
+        "tests/core/test_k_coverage.py",
+    ],
     "autoscoop_blender/core/optimize/es.py": [
         "tests/core/test_es.py",
         "tests/core/test_es_stops.py",

@@ -419,6 +419,14 @@ def test_swap_with_k2_never_brings_back_a_chosen_candidate():
     cover = Cover(inst, (0, 1, 2))
     assert swap_two_for_one(cover, np.arange(4))
     assert cover.chosen == [0, 3] and cover.slack == 0 and cover.count.tolist() == [2] * 4
+    # Every k = 2, points 0-1: A = B = {0}, C = D = {1}, all chosen, the pool only
+    # them. Any pair leaves one point short by one or two; only a candidate not chosen
+    # could bring it back (C counted again would "cover" point 1 three times): no swap.
+    inst = CoverInstance(instance([[0], [0], [1], [1]], 2, 2).matrix, 2,
+                         need=np.full(2, 2, np.int32))  # fmt: skip
+    cover = Cover(inst, (0, 1, 2, 3))
+    assert not swap_two_for_one(cover, np.arange(4))
+    assert cover.chosen == [0, 1, 2, 3]
 
 def test_improve_swaps_then_prunes_to_one():
     """``test_cover_moves_keep_the_goal``'s moves through ``improve``: [3]."""
@@ -437,6 +445,43 @@ def test_closing_a_site_must_lower_the_cost():
     for mast, want in ((1.5, [0, 1, 2]), (0.5, [0, 3]), (1.0, [0, 3])):
         got = close_sites(Cover(inst, (0, 3)), site_of, mast, 1.0)
         assert sorted(got.chosen) == want and got.slack == 0
+
+
+def test_closing_a_site_starts_from_the_candidates_kept():
+    """Points 0-14, all needed; rows R1 = {0-6} (site 0), R2 = {7-13} (site 1), r =
+    {14} (site 2) chosen; site 0 also holds B1 = {0-3, 7-10}, B2 = {4, 5, 11, 12}, B3 =
+    {6, 13} and site 1 R2x = {7-14}. Closing site 2 from R1 and R2 needs R2x alone
+    (R2 then pruned): (R1, R2x), cost 4 against 6. Greedy from nothing would take B1,
+    B2, B3 and R2x (their 8, 4, 2 and 1 new points), cost 6, and close nothing."""
+    rows = [range(7), range(7, 14), [14], [0, 1, 2, 3, 7, 8, 9, 10], [4, 5, 11, 12], [6, 13],
+            range(7, 15)]  # fmt: skip
+    site_of = np.array([0, 1, 2, 0, 0, 0, 1])
+    got = close_sites(Cover(instance(rows, 15, 15), (0, 1, 2)), site_of, 1.0, 1.0)
+    assert sorted(got.chosen) == [0, 6] and got.slack == 0
+
+
+def test_closing_sites_goes_on_while_a_pass_closes_one():
+    """Points 0-8, all needed. Chosen: x = {0-3} (site 0), y1 = {4, 5}, y2 = {6, 7}
+    (site 1), zb = {8} (site 2), cost 3 masts + 4 sensors = 7. Site 2 also holds z =
+    {0, 1, 4-7}, w = {2, 3}, u = {0, 1, 2}, v = {3}. First pass: closing site 0 takes u
+    then w (cost 7, no gain); site 2 cannot close; closing site 1 takes z (cost 5).
+    Second pass: with z chosen, closing site 0 needs only w: cost 4, one mast."""
+    rows = [range(4), [4, 5], [6, 7], [8], [0, 1, 4, 5, 6, 7], [2, 3], [0, 1, 2], [3]]
+    site_of = np.array([0, 1, 1, 2, 2, 2, 2, 2])
+    got = close_sites(Cover(instance(rows, 9, 9), (0, 1, 2, 3)), site_of, 1.0, 1.0)
+    assert sorted(got.chosen) == [3, 4, 5]
+
+
+def test_swap_with_k2_may_keep_one_of_the_pair():
+    """Every k = 2, points 0-3: A = {0-3}, B = {0-3}, C = {0, 1} chosen (not pruned
+    first), nothing else in the pool but them. The pair (A, C) goes first (2 + 0
+    points only they hold to k): without both every point is left once, and A, a
+    member of the pair, brings all four back, so the swap drops C alone."""
+    rows = [range(4), range(4), [0, 1]]
+    inst = CoverInstance(instance(rows, 4, 4).matrix, 4, need=np.full(4, 2, np.int32))
+    cover = Cover(inst, (0, 1, 2))
+    assert swap_two_for_one(cover, np.arange(3))
+    assert sorted(cover.chosen) == [0, 1] and cover.count.tolist() == [2] * 4
 
 
 def _scene(targets, areas, boxes=()):

@@ -100,11 +100,6 @@ class Cover:
         cap = self.inst.cap
         return cap is not None and self.at_site.get(site, 0) >= cap
 
-    def within_cap(self) -> bool:
-        """Whether no site holds more chosen candidates than the cap."""
-        cap = self.inst.cap
-        return cap is None or all(n <= cap for n in self.at_site.values())
-
     @property
     def slack(self) -> int:
         """Points covered to their k beyond the goal (negative: short of it)."""
