@@ -184,6 +184,10 @@ def mutmut_config(module: str) -> str:
         "pytest_add_cli_args_test_selection": TESTS_FOR[module],
         # The copy sits inside this repository: git would answer for the real tree.
         "use_git_change_detection": False,
+        # A mutant's CPU-time limit is 2 x this x its tests' clean time: mutmut's 15
+        # gave an endless pass loop in close_sites 20 CPU minutes; 5 still leaves a
+        # mutant that only slows the tests (a prefilter gone) 10 x their time.
+        "timeout_multiplier": 5.0,
     }
     lines = ["", "[tool.mutmut]"]
     lines += [f"{key} = {json.dumps(value)}" for key, value in settings.items()]

@@ -70,11 +70,11 @@ def test_the_sensors_objective_prefers_a_mast_in_use_less():
     assert _greedy(4, "sensors")[1] == TWO_SITES_PLAN[2]
 
 
-@pytest.mark.parametrize(("cap", "kept"), [(4, 1), (2, 2)])
+@pytest.mark.parametrize(("cap", "kept"), [(4, 1), (4, 2), (2, 2)])
 def test_a_resumed_run_goes_on_as_the_whole_one(cap, kept):
-    """Resumed after B's first sensor (cap 4), B's mast is in use: its next sensor is
-    preferred there. Resumed after two on B at a cap of two, B is full: the third goes
-    to A, as in the run that was never cut."""
+    """Resumed after B's first two sensors, B's mast is in use: its yaw 50 is preferred
+    over A's yaw 30 (as after one); at a cap of two B is full and the third goes to A,
+    as in the runs that were never cut."""
     settings = OptimizeSettings(optimizer="greedy", rho=0.6, max_sensors_per_mast=cap)
     records = []
     Run(_two_sites(), box_caster(), TILTED, settings, on_fixed=records.append).result()
@@ -90,6 +90,19 @@ def test_a_sensor_that_stands_leaves_the_masts_slots_free():
     res, fixed = _greedy(2, existing=[first])
     assert fixed == TWO_SITES_PLAN[4][1:]
     assert len(res.masts) == 1 and res.metrics["cost"] == 2.0
+
+
+def test_a_resumed_run_at_a_full_mast_adds_nothing():
+    """Site B alone at one sensor per mast: the first sensor fills it and the run stops
+    short of 60 %; resumed after that sensor it stops at once."""
+    scene = replace(_two_sites(), sensor_areas=_two_sites().sensor_areas[1:])
+    settings = OptimizeSettings(optimizer="greedy", rho=0.6, max_sensors_per_mast=1)
+    records = []
+    whole = Run(scene, box_caster(), TILTED, settings, on_fixed=records.append).result()
+    assert len(records) == 1 and records[0]["new_points"] == 249
+    resumed = Run(scene, box_caster(), TILTED, settings, resume=records).result()
+    assert len(resumed.sensors) == 1
+    assert resumed.stop_reason == whole.stop_reason == StopReason.out_of_sight("candidate pose")
 
 
 def test_the_sensor_limit_stops_greedy_with_its_reason():
@@ -108,9 +121,14 @@ def test_greedy_adds_no_sensor_that_adds_nothing():
     settings = OptimizeSettings(optimizer="greedy", rho=0.97)
     res = Run(scene, box_caster(), CAMERA, settings, on_fixed=records.append).result()
     assert res.stop_reason == StopReason.out_of_sight("candidate pose")
-    assert records and all(r["new_points"] > 0 for r in records)
+    assert len(records) >= 2 and all(r["new_points"] > 0 for r in records)
     near = res.points[:, 0] < 100
     assert (res.n_covered[near] > 0).all() and (res.n_covered[~near] == 0).all()
+    # Resumed after the first sensor: the same sensors follow, the first never again.
+    again = []
+    Run(scene, box_caster(), CAMERA, settings, resume=records[:1], on_fixed=again.append).result()
+    fixed = [(r["n"], r["x"], r["y"], r["yaw_deg"], r["new_points"]) for r in records]
+    assert [(r["n"], r["x"], r["y"], r["yaw_deg"], r["new_points"]) for r in again] == fixed[1:]
 
 
 def test_a_target_out_of_every_range_has_no_candidate():
@@ -144,6 +162,16 @@ def test_greedy_prices_per_cost_in_any_unit():
     (three of them), whether a camera costs 1 or 0.25."""
     assert _pack_plan((1.0, 4.0), "cost") == ["camera"] * 3
     assert _pack_plan((0.25, 1.0), "cost") == ["camera"] * 3
+
+
+def test_one_point_goes_to_the_cheaper_model():
+    """A 1 m^2 target that the lidar (listed first, cost 4) and the camera (cost 1)
+    both see: one new point each, per cost the camera's is worth four times more."""
+    settings = OptimizeSettings(optimizer="greedy", objective="cost", rho=1.0)
+    scene = flat_scene(target=(0, 0, 1, 1), sensor=(-0.4, -0.4, 0.4, 0.4))
+    pack = SensorPack((LIDAR, CAMERA), (4.0, 1.0))
+    res = Run(scene, box_caster(), pack, settings).result()
+    assert [s.model.kind for s in res.sensors] == ["camera"]
 
 
 def test_greedy_counts_sensors_in_the_sensors_objective():
