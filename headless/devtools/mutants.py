@@ -92,6 +92,7 @@ TESTS_FOR: dict[str, list[str]] = {
         "tests/core/test_mixed_pack.py",
     ],
     "autoscoop_blender/core/optimize/bound.py": [
+        "tests/core/test_bound.py",
         "tests/core/test_lp.py",
         "tests/core/test_mixed_pack.py",
         "tests/core/test_k_coverage.py",

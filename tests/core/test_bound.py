@@ -1,0 +1,105 @@
+"""The bound code on hand cases: the LP in parts returns the whole LP's solution, not
+just its bound, the parts follow the points' extent, the mast-aware MILP counts a
+candidate once. The LP optima below are worked out on paper (each unique).
+
+Part 0, points 0-2: a = {0, 1}, b = {1, 2}, c = {0, 2} at 1 each and e = {0} at 0.1.
+Every point once: e + b = 1.1 (point 1 needs a or b, point 2 b or c; b does both).
+Every point twice (x <= 1): a + b >= 2 and b + c >= 2 force a = b = c = 1: 3.
+Part 1, points 3-5: a' = {3, 4}, b' = {4, 5}, c' = {3, 5} at 1 each. Once: each pair
+sums to 1 at the least 1.5, all three at 0.5 (the only optimum). Twice: all three, 3.
+"""
+
+import numpy as np
+import pytest
+
+from autoscoop_blender.core.optimize.bound import (
+    LPProgress,
+    combined_bound,
+    cover_lp,
+    parts_of,
+    sensors_on_sites,
+    split_cover_lp,
+)
+from autoscoop_blender.core.optimize.cover import CoverInstance
+from tests.core.test_lp import drain, instance
+
+ROWS = [[0, 1], [1, 2], [0, 2], [0], [3, 4], [4, 5], [3, 5]]
+COST = np.array([1.0, 1.0, 1.0, 0.1, 1.0, 1.0, 1.0])
+PART = np.array([0, 0, 0, 1, 1, 1])
+# Each candidate's value in the LP's unique optimum (every point once).
+X_ONCE = {1: 1.0, 3: 1.0, 4: 0.5, 5: 0.5, 6: 0.5}
+
+
+def _run(need):
+    """(split LP's solution, its progress reports) on all six points, each needed
+    ``need`` times."""
+    inst = CoverInstance(instance(ROWS, 6, 6).matrix, 6, need=np.full(6, need, np.int32))
+    reports = []
+    gen = split_cover_lp(inst, COST, np.arange(7), np.zeros(0, np.int64), PART, rel_gap=0)
+    while True:
+        try:
+            step = next(gen)
+        except StopIteration as done:
+            return done.value, [r for r in reports if isinstance(r, LPProgress)]
+        reports.append(step)
+
+
+def test_the_lp_in_parts_returns_the_whole_lps_solution():
+    sol, reports = _run(1)
+    assert sol.parts == 2 and sol.complete
+    assert sol.value == pytest.approx(1.1 + 1.5)
+    assert sol.bound == pytest.approx(2.6, rel=1e-5) and sol.bound <= 2.6
+    x = dict(zip(sol.columns.tolist(), sol.x.tolist(), strict=True))
+    assert {c: v for c, v in x.items() if v > 1e-9} == pytest.approx(X_ONCE)
+    # The duals price every candidate: none below its cost (the LP is complete), those
+    # in the optimum at their cost exactly (complementary slackness); the duals are
+    # summed in float32, within 1e-6 of the exact sums here.
+    assert sol.reduced == pytest.approx(COST - sol.priced)
+    assert (sol.reduced >= -1e-6).all()
+    assert sol.reduced[list(X_ONCE)] == pytest.approx(0.0, abs=1e-6)
+    # One report per part, the values and rounds adding up, the last bound the final.
+    alone = [
+        drain(cover_lp(instance([[p - first for p in r] for r in ROWS[rows]], 3, 3),
+                       COST[rows], np.arange(len(COST[rows])), np.zeros(0, np.int64),
+                       integral=False))
+        for first, rows in ((0, slice(0, 4)), (3, slice(4, 7)))
+    ]  # fmt: skip
+    assert [r.value for r in reports] == pytest.approx([1.1, 2.6])
+    assert [r.rounds for r in reports] == [alone[0].rounds, alone[0].rounds + alone[1].rounds]
+    assert sol.rounds == reports[-1].rounds and reports[-1].bound == sol.bound
+    assert reports[0].bound <= 1.1 + 1e-9  # part 1 unsolved counts nothing yet
+    assert [r.columns for r in reports] == [4, 7] and len(sol.columns) == 7
+
+
+def test_the_lp_in_parts_keeps_each_points_k():
+    sol, _ = _run(2)
+    assert sol.value == pytest.approx(3.0 + 3.0)
+    assert sol.bound == pytest.approx(6.0, rel=1e-5) and sol.bound <= 6.0
+
+
+def test_parts_follow_the_longer_extent_and_an_odd_count():
+    """A strip along y (1 m wide, its points in no order) splits along y; three parts
+    of 99 points are three runs of 33, five of 100 five runs of 20."""
+    y = np.random.default_rng(0).permutation(100).astype(float)
+    part = parts_of(np.column_stack([y % 2, y]), 4)
+    assert np.bincount(part).tolist() == [25] * 4
+    assert np.all(np.diff(part[np.argsort(y)]) >= 0)  # consecutive runs along y
+    for n_parts, n in ((3, 99), (5, 100)):
+        part = parts_of(np.column_stack([np.arange(float(n)), np.zeros(n)]), n_parts)
+        assert np.bincount(part).tolist() == [n // n_parts] * n_parts
+        assert np.all(np.diff(part) >= 0)
+
+
+def test_combined_bound_fills_the_cheapest_slope_first_in_any_order():
+    """``test_lp``'s two parts listed the other way round: still 5."""
+    assert combined_bound([(2.0, 0.0), (1.0, 2.0)], [5, 5], 6) == pytest.approx(5.0)
+
+
+def test_the_mast_aware_milp_takes_a_candidate_once():
+    """Points 0 and 1, each needed twice; A and B see both from one site, A at 1, B at
+    3: A twice would cost 2 but counts once, so the plan is A and B (4 and the mast)."""
+    inst = CoverInstance(instance([[0, 1], [0, 1]], 2, 2).matrix, 2,
+                         need=np.full(2, 2, np.int32))  # fmt: skip
+    site_of = np.zeros(2, dtype=np.int64)
+    got = drain(sensors_on_sites(inst, site_of, np.array([0]), [0, 1], 1.0, np.array([1.0, 3.0])))
+    assert sorted(got) == [0, 1]
