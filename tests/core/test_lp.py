@@ -484,6 +484,65 @@ def test_swap_with_k2_may_keep_one_of_the_pair():
     assert sorted(cover.chosen) == [0, 1] and cover.count.tolist() == [2] * 4
 
 
+def test_a_swap_must_cost_less_than_the_two():
+    """a = {0}, b = {1} chosen at 1 each; d = {0, 1} in the pool. d replaces the pair
+    when it costs less than their 2 (1.5), not at 2 or 2.5; with one point of slack
+    (goal 1) the pair needs one point back and the dear d is still refused. Through
+    ``improve`` too (pruning first changes nothing: each holds a point alone)."""
+    rows = [[0], [1], [0, 1]]
+    for d_cost, goal, swapped in ((1.5, 2, True), (2.0, 2, False), (2.5, 2, False),
+                                  (2.5, 1, False)):  # fmt: skip
+        cost = np.array([1.0, 1.0, d_cost])
+        cover = Cover(instance(rows, 2, goal), (0, 1))
+        assert swap_two_for_one(cover, np.array([2]), sensor_cost=cost) is swapped
+        assert cover.chosen == ([2] if swapped else [0, 1])
+    cover = improve(Cover(instance(rows, 2, 2), (0, 1)), np.array([2]), np.array([1, 1, 2.5]))
+    assert cover.chosen == [0, 1]
+
+
+def test_a_swap_keeps_within_the_cap():
+    """One per site: a = {0} (site 0), b = {1} (site 1), c = {2} (site 2) chosen; d =
+    {0, 1} replaces a and b on a site a or b frees (site 0), never on full site 2."""
+    rows = [[0], [1], [2], [0, 1]]
+    for d_site, swapped in ((0, True), (2, False)):
+        site_of = np.array([0, 1, 2, d_site])
+        inst = instance(rows, 3, 3)
+        inst = CoverInstance(inst.matrix, 3, site_of=site_of, cap=1)
+        cover = Cover(inst, (0, 1, 2))
+        assert swap_two_for_one(cover, np.array([3])) is swapped
+        assert sorted(cover.chosen) == ([2, 3] if swapped else [0, 1, 2])
+        assert cover.at_site == ({0: 1, 1: 0, 2: 1} if swapped else {0: 1, 1: 1, 2: 1})
+    # c = {2, 3} and a goal of 3 of the 4 points: the pair (a, b) needs one point back,
+    # and d, on c's full site, may not bring it; every other pair frees site 2 but
+    # needs two points back, and d brings one.
+    rows = [[0], [1], [2, 3], [0, 1]]
+    inst = CoverInstance(instance(rows, 4, 3).matrix, 3, site_of=np.array([0, 1, 2, 2]), cap=1)
+    cover = Cover(inst, (0, 1, 2))
+    assert not swap_two_for_one(cover, np.array([3]))
+    assert cover.chosen == [0, 1, 2]
+
+
+def test_a_cover_counts_what_each_site_holds():
+    inst = instance([[0], [1], [2]], 3, 3)
+    inst = CoverInstance(inst.matrix, 3, site_of=np.array([0, 0, 1]), cap=2)
+    cover = Cover(inst, (0, 1, 2))
+    assert cover.at_site == {0: 2, 1: 1} and cover.full(0) and not cover.full(1)
+    cover.remove(1)
+    assert cover.at_site == {0: 1, 1: 1} and not cover.full(0)
+
+
+def test_closing_a_site_completes_per_cost():
+    """p = {0, 1} (site 0) and r = {2} (site 1) chosen at 1 each, masts at 1: cost 4.
+    Site 0 also holds big = {0, 1, 2} at 3 and small = {2} at 1. Closing site 1, the
+    point 2 goes to small per cost (p and small: 3); per point big would come first and
+    p be pruned (big alone: 4, no gain), and nothing close."""
+    rows = [[0, 1], [2], [0, 1, 2], [2]]
+    site_of = np.array([0, 1, 0, 0])
+    cost = np.array([1.0, 1.0, 3.0, 1.0])
+    got = close_sites(Cover(instance(rows, 3, 3), (0, 1)), site_of, 1.0, cost)
+    assert sorted(got.chosen) == [0, 3]
+
+
 def _scene(targets, areas, boxes=()):
     vertices, faces = box_mesh(list(boxes))
     return SceneModel(
