@@ -103,3 +103,16 @@ def test_the_mast_aware_milp_takes_a_candidate_once():
     site_of = np.zeros(2, dtype=np.int64)
     got = drain(sensors_on_sites(inst, site_of, np.array([0]), [0, 1], 1.0, np.array([1.0, 3.0])))
     assert sorted(got) == [0, 1]
+
+
+def test_the_mast_aware_milp_keeps_within_the_cap():
+    """Points 0-3, all needed; site 0: c0-c3, one point each; site 1: e01 = {0, 1};
+    site 2: e23 = {2, 3}; listed interleaved. Masts at 10, sensors at 1. Four per mast:
+    site 0 alone (10 + 4 = 14). Two per mast: e01 and e23 (22) beat two on site 0 and
+    e23 (23, the start). Three per mast: still 22 (three on site 0 need a second mast)."""
+    rows = [[0], [0, 1], [1], [2, 3], [2], [3]]
+    site_of = np.array([0, 1, 0, 2, 0, 0])
+    for cap, want in ((4, [0, 2, 4, 5]), (3, [1, 3]), (2, [1, 3])):
+        inst = CoverInstance(instance(rows, 4, 4).matrix, 4, site_of=site_of, cap=cap)
+        got = drain(sensors_on_sites(inst, site_of, np.arange(3), [0, 2, 3], 10.0, 1.0))
+        assert sorted(got) == want
