@@ -1,8 +1,9 @@
 """Greedy's own rules on hand cases: it goes on from sensors fixed before (a resumed
 run, sensors that stand) without breaking the per-mast cap, prices per cost only in
 the cost objective and in any unit of money, and stops with the reason a planner
-reads. The picks on the two-site scene below follow by hand from the points each
-pose adds (the counts beside ``TWO_SITES_PLAN``)."""
+reads. On the two-site scene below the points each pose adds are the candidate
+matrix's (``test_candidates`` checks it against evaluating every pose afresh); which
+pose wins, given them, is worked out by hand from greedy's rule."""
 
 from dataclasses import replace
 
@@ -17,7 +18,7 @@ from autoscoop_blender.core.optimize.base import StopReason
 from autoscoop_blender.core.problem import Problem
 from autoscoop_blender.core.run import Run
 from autoscoop_blender.core.settings import OptimizeSettings
-from tests.core.flat import box_caster, down_camera, flat_scene
+from tests.core.flat import box_caster, flat_scene
 from tests.core.test_lp import drain
 from tests.core.test_mixed_pack import CAMERA, LIDAR, TARGET
 

@@ -302,7 +302,6 @@ def test_greedy_per_cost_and_closing_masts():
     assert sorted(close_sites(Cover(inst, (3, 4)), site_of, 0.5, 1.0).chosen) == [3, 4]
 
 
-
 # --- the cover moves on instances small enough to follow by hand -------------------
 
 
@@ -400,7 +399,6 @@ def test_swap_tries_the_pair_that_covers_least_alone_first():
     assert cover.chosen == [0, 3, 5] and cover.slack == 0
 
 
-
 def test_swap_never_breaks_the_goal():
     """0 = {0-4}, 1 = {5}, 2 = {5}, goal 6 of points 0-6: the pair (1, 2) loses point
     5, one more than the slack (0), and the pool (3 = {6}) brings nothing back;
@@ -427,6 +425,7 @@ def test_swap_with_k2_never_brings_back_a_chosen_candidate():
     cover = Cover(inst, (0, 1, 2, 3))
     assert not swap_two_for_one(cover, np.arange(4))
     assert cover.chosen == [0, 1, 2, 3]
+
 
 def test_improve_swaps_then_prunes_to_one():
     """``test_cover_moves_keep_the_goal``'s moves through ``improve``: [3]."""
