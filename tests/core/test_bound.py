@@ -1,6 +1,7 @@
 """The bound code on hand cases: the LP in parts returns the whole LP's solution, not
-just its bound, the parts follow the points' extent, the mast-aware MILP counts a
-candidate once. The LP optima below are worked out on paper (each unique).
+just its bound; the parts follow the points' extent; the mast-aware MILP counts a
+candidate once and keeps within the cap; the fewest masts count each point's k and
+masts that stand. The LP optima below are worked out on paper (each unique).
 
 Part 0, points 0-2: a = {0, 1}, b = {1, 2}, c = {0, 2} at 1 each and e = {0} at 0.1.
 Every point once: e + b = 1.1 (point 1 needs a or b, point 2 b or c; b does both).
@@ -18,6 +19,7 @@ from autoscoop_blender.core.optimize.bound import (
     cover_lp,
     parts_of,
     sensors_on_sites,
+    site_cover,
     split_cover_lp,
 )
 from autoscoop_blender.core.optimize.cover import CoverInstance
@@ -116,3 +118,29 @@ def test_the_mast_aware_milp_keeps_within_the_cap():
         inst = CoverInstance(instance(rows, 4, 4).matrix, 4, site_of=site_of, cap=cap)
         got = drain(sensors_on_sites(inst, site_of, np.arange(3), [0, 2, 3], 10.0, 1.0))
         assert sorted(got) == want
+
+
+def test_the_fewest_masts_count_each_points_k():
+    """Points 0 and 1, each needed twice; sites 0, 1, 2 each hold one candidate seeing
+    both: one candidate counts once, so two masts (one would do at k = 1). Site 3 holds
+    two such candidates: it alone is enough."""
+    for rows, site_of, want in (
+        ([[0, 1]] * 3, [0, 1, 2], 2),
+        ([[0, 1]] * 5, [0, 1, 2, 3, 3], 1),
+    ):
+        inst = CoverInstance(instance(rows, 2, 2).matrix, 2, need=np.full(2, 2, np.int32))
+        sol = drain(site_cover(inst, np.array(site_of), 4))
+        assert sol.bound == want and len(sol.sites) == want
+
+
+def test_masts_that_stand_cost_nothing():
+    """Points 0 and 1; site 0 sees both, site 1 (standing) sees 0, site 2 sees 1: one
+    new mast at least (site 0, or site 2 beside the standing one); with site 0's mast
+    standing instead, none."""
+    inst = instance([[0, 1], [0], [1]], 2, 2)
+    site_of = np.arange(3)
+    for standing, want in (([False, True, False], 1), ([True, False, False], 0)):
+        sol = drain(site_cover(inst, site_of, 3, standing=np.array(standing)))
+        assert sol.bound == want
+        new = [s for s in sol.sites if not standing[s]]
+        assert len(new) == want
