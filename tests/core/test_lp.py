@@ -497,6 +497,10 @@ def test_a_swap_must_cost_less_than_the_two():
         assert cover.chosen == ([2] if swapped else [0, 1])
     cover = improve(Cover(instance(rows, 2, 2), (0, 1)), np.array([2]), np.array([1, 1, 2.5]))
     assert cover.chosen == [0, 1]
+    # A dear d and a cheap copy of it, e, in the pool, d first: e replaces the pair.
+    cover = Cover(instance([*rows, [0, 1]], 2, 2), (0, 1))
+    assert swap_two_for_one(cover, np.array([2, 3]), sensor_cost=np.array([1, 1, 2.5, 1.5]))
+    assert cover.chosen == [3]
 
 
 def test_a_swap_keeps_within_the_cap():
@@ -519,6 +523,22 @@ def test_a_swap_keeps_within_the_cap():
     cover = Cover(inst, (0, 1, 2))
     assert not swap_two_for_one(cover, np.array([3]))
     assert cover.chosen == [0, 1, 2]
+    # d on the full site 2 and a copy of it, e, on site 0, d first: e replaces a and b.
+    rows = [[0], [1], [2], [0, 1], [0, 1]]
+    inst = CoverInstance(instance(rows, 3, 3).matrix, 3, site_of=np.array([0, 1, 2, 2, 0]), cap=1)
+    cover = Cover(inst, (0, 1, 2))
+    assert swap_two_for_one(cover, np.array([3, 4]))
+    assert sorted(cover.chosen) == [2, 4]
+
+
+def test_greedy_adds_nothing_on_a_site_full_from_the_start():
+    """One per site: a = {0} chosen on site 0; b = {1, 2} (site 0) would add two
+    points, c = {1} (site 1) one. Site 0 is full: c is added, and point 2, which only b
+    sees, stays short."""
+    inst = CoverInstance(instance([[0], [1, 2], [1]], 3, 3).matrix, 3,
+                         site_of=np.array([0, 0, 1]), cap=1)  # fmt: skip
+    cover = complete(Cover(inst, (0,)), np.array([1, 2]))
+    assert cover.chosen == [0, 2] and cover.slack == -1
 
 
 def test_a_cover_counts_what_each_site_holds():
