@@ -144,3 +144,20 @@ def test_masts_that_stand_cost_nothing():
         assert sol.bound == want
         new = [s for s in sol.sites if not standing[s]]
         assert len(new) == want
+
+
+def test_a_candidate_seen_in_two_parts():
+    """S = {0-3} at 2 spans part 0 (points 0, 1) and part 1 (2, 3): each part has a copy
+    at half the cost, 1. Part 0 has A = {0, 1} at 1.5, part 1 B = {2, 3} at 0.5. Part 0
+    takes S's copy (1 < 1.5), part 1 takes B (0.5 < 1): S keeps its larger x, 1, and
+    its dual weight adds up over the parts, 1 + 0.5 (each copy's points priced at what
+    covers them there): 0.5 short of its cost."""
+    inst = CoverInstance(instance([[0, 1, 2, 3], [0, 1], [2, 3]], 4, 4).matrix, 4)
+    cost = np.array([2.0, 1.5, 0.5])
+    part = np.array([0, 0, 1, 1])
+    sol = drain(split_cover_lp(inst, cost, np.arange(3), np.zeros(0, np.int64), part, rel_gap=0))
+    assert sol.value == pytest.approx(1.5) and sol.complete
+    x = dict(zip(sol.columns.tolist(), sol.x.tolist(), strict=True))
+    assert x[0] == pytest.approx(1.0) and x[2] == pytest.approx(1.0) and x.get(1, 0.0) < 1e-9
+    assert sol.priced[0] == pytest.approx(1.5, abs=1e-6)
+    assert sol.reduced[0] == pytest.approx(0.5, abs=1e-6)
