@@ -161,3 +161,12 @@ def test_a_candidate_seen_in_two_parts():
     assert x[0] == pytest.approx(1.0) and x[2] == pytest.approx(1.0) and x.get(1, 0.0) < 1e-9
     assert sol.priced[0] == pytest.approx(1.5, abs=1e-6)
     assert sol.reduced[0] == pytest.approx(0.5, abs=1e-6)
+
+
+def test_the_mast_aware_milp_counts_a_point_only_at_its_k():
+    """Points 0 and 1, each needed twice, the goal one of them; A = {0, 1} and B = {0}
+    at 1 each, one site. A alone brings both halfway, which counts nothing: the plan is
+    A and B (point 0 twice), 2."""
+    inst = CoverInstance(instance([[0, 1], [0]], 2, 1).matrix, 1, need=np.full(2, 2, np.int32))
+    got = drain(sensors_on_sites(inst, np.zeros(2, np.int64), np.array([0]), [0, 1], 0.0, 1.0))
+    assert sorted(got) == [0, 1]
