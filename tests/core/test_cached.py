@@ -19,6 +19,7 @@ from autoscoop_blender.core.model.sensors import (
     frame,
 )
 from tests.core.flat import down_camera, flat_grid, flat_scene
+from tests.core.test_coverage import lattice, offsets
 
 BOXES = [((10, -2, 0), (12, 6, 3)), ((-30, 20, 0), (-20, 30, 8)), ((30, -40, 0), (34, -30, 5))]
 
@@ -114,16 +115,6 @@ BAND_R2 = H**2 * 2.0 / 3.0  # 66.67
 WALL = ((2.8, -30.0, 0.0), (3.2, 30.0, 5.0))  # hides a = 3, 4, 5 (test_coverage)
 
 
-def _offsets(grid, ordinals):
-    xy = grid.target_xy[ordinals] - 0.5
-    assert np.allclose(xy, np.round(xy))
-    return sorted(map(tuple, np.round(xy).astype(int).tolist()))
-
-
-def _lattice(keep, n=25):
-    return sorted((a, b) for a in range(-n, n + 1) for b in range(-n, n + 1) if keep(a, b))
-
-
 def _shadowed(a):
     return 2.7 <= a <= 2.7 * H / (H - 5.0)
 
@@ -156,23 +147,23 @@ def test_reachable_is_the_depression_band_minus_the_shadow():
     assert cached.extra_rays == 0
     xy = grid.target_xy - 0.5
     north = xy[:, 1] >= 0
-    got = _offsets(grid, cached.reachable(model, pose, north))
+    got = offsets(grid, cached.reachable(model, pose, north))
 
     def band(a, b):
         return 0 <= a <= 11 and -8 <= b <= 8 and a * a + b * b <= BAND_R2
 
-    assert got == _lattice(lambda a, b: band(a, b) and b >= 0 and not _shadowed(a))
-    asked_north = len(_lattice(lambda a, b: band(a, b) and b >= 0))
+    assert got == lattice(lambda a, b: band(a, b) and b >= 0 and not _shadowed(a))
+    asked_north = len(lattice(lambda a, b: band(a, b) and b >= 0))
     assert cached.extra_rays == counting.rays == asked_north
     everything = np.ones(grid.n_targets, dtype=bool)
-    got = _offsets(grid, cached.reachable(model, pose, everything))
-    assert got == _lattice(lambda a, b: band(a, b) and not _shadowed(a))
+    got = offsets(grid, cached.reachable(model, pose, everything))
+    assert got == lattice(lambda a, b: band(a, b) and not _shadowed(a))
     assert (0, -8) in got and grid.target_xy[0].tolist() == [0.5, -7.5]  # ordinal 0
-    assert cached.extra_rays == counting.rays == len(_lattice(band))
+    assert cached.extra_rays == counting.rays == len(lattice(band))
     # Another position adds its own rays to the count.
     other = place(grid, 2.5, 0.5, H, 90.0, 0.0)
     n_other = len(cached.reachable(model, other, everything))
-    assert n_other > 0 and cached.extra_rays == counting.rays > len(_lattice(band))
+    assert n_other > 0 and cached.extra_rays == counting.rays > len(lattice(band))
 
 
 def test_reachable_with_a_pixel_density_level():
@@ -195,7 +186,7 @@ def test_reachable_with_a_pixel_density_level():
         model = replace(base, min_px_per_m=px).validated("test")
         pose = place(grid, 0.5, 0.5, H, 90.0, 0.0)
         got = cached.reachable(model, pose, np.ones(grid.n_targets, dtype=bool))
-        assert _offsets(grid, got) == _lattice(lambda a, b, r2=r2: a * a + b * b <= r2)
+        assert offsets(grid, got) == lattice(lambda a, b, r2=r2: a * a + b * b <= r2)
         assert cached.extra_rays == counting.rays == len(got)
         covered = cached.evaluate(model, pose).covered
         assert len(covered) == (0 if px > f / H else 121)
@@ -220,9 +211,9 @@ def test_cover_many_covers_the_square_and_the_diamond():
     covered, ordinal = cached.cover_many(model, pose, rots)
     assert covered.shape == (2, len(ordinal))
     for row, shape in zip(covered, (square, diamond)):
-        want = _lattice(lambda a, b, shape=shape: shape(a, b) and not _shadowed(a))
-        assert _offsets(grid, ordinal[row]) == want
-    union = _lattice(lambda a, b: square(a, b) or diamond(a, b))
+        want = lattice(lambda a, b, shape=shape: shape(a, b) and not _shadowed(a))
+        assert offsets(grid, ordinal[row]) == want
+    union = lattice(lambda a, b: square(a, b) or diamond(a, b))
     assert cached.extra_rays == counting.rays == len(union)
     cached.cover_many(model, pose, rots)
     assert cached.extra_rays == counting.rays == len(union)  # nothing asked twice

@@ -7,12 +7,11 @@ pose wins, given them, is worked out by hand from greedy's rule."""
 
 from dataclasses import replace
 
-import numpy as np
 import pytest
 import shapely
 
 from autoscoop_blender.core.candidates import build_candidates
-from autoscoop_blender.core.model.scene import Area, SceneModel
+from autoscoop_blender.core.model.scene import Area
 from autoscoop_blender.core.model.sensors import ROADSIDE_LIDAR, SensorPack, SensorSpec
 from autoscoop_blender.core.optimize.base import StopReason
 from autoscoop_blender.core.problem import Problem
@@ -20,31 +19,17 @@ from autoscoop_blender.core.run import Run
 from autoscoop_blender.core.settings import OptimizeSettings
 from tests.core.flat import box_caster, flat_scene
 from tests.core.test_lp import drain
-from tests.core.test_mixed_pack import CAMERA, LIDAR, TARGET
+from tests.core.test_mixed_pack import CAMERA, LIDAR, TARGET, TILTED, two_sites
 
-# A camera tilted 45 deg with a 25 m range sees one side of a 30 m square from its
-# middle; sites A (0, 0) and B (2, 0); the 60 % goal is 540 of the 900 points. Greedy
-# fixes yaws 150 and 230 on B (249 and 220 new points), then B's yaw 50 (187 new, 374
-# at the cost objective's mast preference of 1) over A's yaw 30 (209 new); with two per
-# mast B is full and A's yaw 30 comes third. (x, y, yaw, new points) as fixed:
-TILTED = replace(CAMERA, pitch_min_deg=45.0, pitch_max_deg=45.0, range_m=25.0)
+# On ``two_sites`` (sites A (0, 0) and B (2, 0)) with the TILTED camera, the 60 % goal
+# is 540 of the 900 points. Greedy fixes yaws 150 and 230 on B (249 and 220 new
+# points), then B's yaw 50 (187 new, 374 at the cost objective's mast preference of 1)
+# over A's yaw 30 (209 new); with two per mast B is full and A's yaw 30 comes third.
+# (x, y, yaw, new points) as fixed:
 TWO_SITES_PLAN = {
     4: [(2.0, 0.0, 150.0, 249), (2.0, 0.0, 230.0, 220), (2.0, 0.0, 50.0, 187)],
     2: [(2.0, 0.0, 150.0, 249), (2.0, 0.0, 230.0, 220), (0.0, 0.0, 30.0, 209)],
 }
-
-
-def _two_sites():
-    return SceneModel(
-        vertices=np.zeros((0, 3)),
-        faces=np.zeros((0, 3), dtype=np.int32),
-        occluders=(),
-        targets=(Area("Target", shapely.box(-15, -15, 15, 15)),),
-        sensor_areas=(
-            Area("A", shapely.box(-0.4, -0.4, 0.4, 0.4)),
-            Area("B", shapely.box(1.6, -0.4, 2.4, 0.4)),
-        ),
-    )
 
 
 def _greedy(cap=4, objective="cost", **kw):
@@ -53,7 +38,7 @@ def _greedy(cap=4, objective="cost", **kw):
     given = {"rho": 0.6, "max_sensors_per_mast": cap, "objective": objective}
     settings = OptimizeSettings(optimizer="greedy", **(given | kw.pop("settings", {})))
     records = []
-    run = Run(_two_sites(), box_caster(), TILTED, settings, on_fixed=records.append, **kw)
+    run = Run(two_sites(), box_caster(), TILTED, settings, on_fixed=records.append, **kw)
     res = run.result()
     return res, [(r["x"], r["y"], r["yaw_deg"], r["new_points"]) for r in records]
 
@@ -78,7 +63,7 @@ def test_a_resumed_run_goes_on_as_the_whole_one(cap, kept):
     as in the runs that were never cut."""
     settings = OptimizeSettings(optimizer="greedy", rho=0.6, max_sensors_per_mast=cap)
     records = []
-    Run(_two_sites(), box_caster(), TILTED, settings, on_fixed=records.append).result()
+    Run(two_sites(), box_caster(), TILTED, settings, on_fixed=records.append).result()
     _, fixed = _greedy(cap, resume=records[:kept])
     assert fixed == TWO_SITES_PLAN[cap][kept:]
 
@@ -96,7 +81,7 @@ def test_a_sensor_that_stands_leaves_the_masts_slots_free():
 def test_a_resumed_run_at_a_full_mast_adds_nothing():
     """Site B alone at one sensor per mast: the first sensor fills it and the run stops
     short of 60 %; resumed after that sensor it stops at once."""
-    scene = replace(_two_sites(), sensor_areas=_two_sites().sensor_areas[1:])
+    scene = replace(two_sites(), sensor_areas=two_sites().sensor_areas[1:])
     settings = OptimizeSettings(optimizer="greedy", rho=0.6, max_sensors_per_mast=1)
     records = []
     whole = Run(scene, box_caster(), TILTED, settings, on_fixed=records.append).result()

@@ -29,6 +29,26 @@ TARGET = (0.0, 0.0, 30.0, 10.0)
 # (the camera at x = 28 adds columns 24.5 .. 29.5: 60 >= 51); one lidar alone is short.
 
 
+# A camera tilted 45 deg with a 25 m range: from the middle of ``two_sites``' 30 m
+# square it sees one side.
+TILTED = replace(CAMERA, pitch_min_deg=45.0, pitch_max_deg=45.0, range_m=25.0)
+
+
+def two_sites():
+    """A 30 m square target around the origin, mast sites A at (0, 0) and B at (2, 0)
+    (each one lattice position), no occluder."""
+    return SceneModel(
+        vertices=np.zeros((0, 3)),
+        faces=np.zeros((0, 3), dtype=np.int32),
+        occluders=(),
+        targets=(Area("Target", shapely.box(-15, -15, 15, 15)),),
+        sensor_areas=(
+            Area("A", shapely.box(-0.4, -0.4, 0.4, 0.4)),
+            Area("B", shapely.box(1.6, -0.4, 2.4, 0.4)),
+        ),
+    )
+
+
 def _plan(optimizer, lidar_cost, **kw):
     settings = OptimizeSettings(optimizer=optimizer, objective="cost", mast_cost=0.0, **kw)
     pack = SensorPack((CAMERA, LIDAR), (1.0, lidar_cost))
@@ -220,20 +240,9 @@ def test_a_full_mast_sends_the_next_sensor_to_another(optimizer):
     range) sees one side of it, so 60 % of the square takes three. With room for four
     they share one mast (cost 3 + 3 = 6, and the lp proves 6); at two per mast the
     third goes to the other site (cost 2 x 3 + 3 = 9); the goal is reached both ways."""
-    tilted = replace(CAMERA, pitch_min_deg=45.0, pitch_max_deg=45.0, range_m=25.0)
-    scene = SceneModel(
-        vertices=np.zeros((0, 3)),
-        faces=np.zeros((0, 3), dtype=np.int32),
-        occluders=(),
-        targets=(Area("Target", shapely.box(-15, -15, 15, 15)),),
-        sensor_areas=(
-            Area("A", shapely.box(-0.4, -0.4, 0.4, 0.4)),
-            Area("B", shapely.box(1.6, -0.4, 2.4, 0.4)),
-        ),
-    )
     for cap, masts, cost in ((4, [3], 6.0), (2, [2, 1], 9.0)):
         settings = OptimizeSettings(optimizer=optimizer, rho=0.6, max_sensors_per_mast=cap)
-        res = Run(scene, box_caster(), tilted, settings).result()
+        res = Run(two_sites(), box_caster(), TILTED, settings).result()
         assert sorted((len(m.sensors) for m in res.masts), reverse=True) == masts
         assert res.metrics["cost"] == cost
         assert res.metrics["coverage_fraction"] >= 0.6
