@@ -10,12 +10,13 @@
 #                   the first pytest run (all tests, or PYTEST ARGS) with branch coverage of
 #                   autoscoop_blender/core and autoscoop_blender/io: a table per file, then
 #                   the total ("TOTAL ... %"); settings in pyproject.toml [tool.coverage].
-#   ./dev.sh mutants [-j N] [--rev REV] [FILE...]
+#   ./dev.sh mutants [-j N] [--rev REV] [--only PATTERN] [FILE...]
 #                   mutation testing (mutmut) of the named core modules (default: every
 #                   module mapped in headless/devtools/mutants.py, long) with the tests
 #                   mapped to each; ends with "killed K of M" per module and in total and
 #                   the surviving mutants' changed lines. Mutants go to .mutants/ (git-
-#                   ignored), never into the sources. -j: mutants run at once (default 1).
+#                   ignored), never into the sources. -j: mutants run at once (default 1);
+#                   --only: just the mutants whose names match (fnmatch, repeatable).
 #   Neither coverage nor mutants is part of ./dev.sh test.
 set -euo pipefail
 cd "$(dirname "$0")"

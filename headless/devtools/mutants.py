@@ -13,6 +13,10 @@ first failure). The run ends with ``killed K of M`` per module and in total, and
 survivor's name and changed lines. A timeout counts as killed (a test noticed); a
 mutant no test reaches counts as survived ("no tests").
 
+``--only PATTERN`` (repeatable; fnmatch against mutmut's names, such as
+``'*bound.x_cover_lp__mutmut_*'``) runs a part of a module's mutants: the rest are not
+checked, and the score counts only those run (``killed K of M run, N not run``).
+
 To look at a survivor more closely: ``cd .mutants/<module> && ../../.venv/bin/mutmut
 show NAME`` (or ``browse``).
 """
@@ -108,6 +112,7 @@ ALSO_COPY = ["headless", "sample_blends", "blender_manifest.toml", "requirements
 
 # mutmut's exit codes (mutmut.stats.status_by_exit_code, 3.8): what counts as killed.
 KILLED = {"killed", "timeout", "caught by type check"}
+NOT_RUN = "not checked"  # generated, but left out by --only (or the run was stopped)
 
 
 @dataclass
@@ -122,10 +127,23 @@ class Score:
 
     @property
     def total(self) -> int:
-        return len(self.status)
+        """Mutants run (those ``--only`` left out are not counted)."""
+        return len(self.status) - self.not_run
+
+    @property
+    def not_run(self) -> int:
+        return sum(s == NOT_RUN for s in self.status.values())
 
     def survivors(self) -> list[str]:
-        return sorted((n for n, s in self.status.items() if s not in KILLED), key=_mutant_key)
+        return sorted(
+            (n for n, s in self.status.items() if s not in KILLED and s != NOT_RUN),
+            key=_mutant_key,
+        )
+
+    def summary(self) -> str:
+        """``killed K of M``, and ``run, N not run`` when ``--only`` left some out."""
+        text = f"killed {self.killed} of {self.total}"
+        return text + (f" run, {self.not_run} not run" if self.not_run else "")
 
 
 def _mutant_key(name: str) -> tuple[str, int]:
@@ -147,6 +165,13 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("-j", "--jobs", type=int, default=1, help="mutants run at once (1)")
     parser.add_argument(
         "--rev", help="mutate this git revision's files instead of the working tree"
+    )
+    parser.add_argument(
+        "--only",
+        action="append",
+        default=[],
+        metavar="PATTERN",
+        help="run only the mutants whose mutmut names match (fnmatch; repeatable)",
     )
     args = parser.parse_args(argv)
     modules = []
@@ -223,7 +248,7 @@ def make_copy(dest: Path, rev: str | None) -> None:
         shutil.copy2(src, dest / rel)
 
 
-def run_module(module: str, jobs: int, rev: str | None) -> Score | None:
+def run_module(module: str, jobs: int, rev: str | None, only: list[str]) -> Score | None:
     """Run mutmut on one module in its own copy; None when mutmut failed."""
     work = WORK / module.removesuffix(".py").replace("/", ".")
     make_copy(work, rev)
@@ -235,7 +260,9 @@ def run_module(module: str, jobs: int, rev: str | None) -> Score | None:
     print(f"== mutants of {module} (tests: {' '.join(TESTS_FOR[module])}) in {work}", flush=True)
     mutmut = [sys.executable, "-m", "mutmut"]
     env = dict(os.environ, PYTHONDONTWRITEBYTECODE="1")
-    code = subprocess.run([*mutmut, "run", "--max-children", str(jobs)], cwd=work, env=env)
+    code = subprocess.run(
+        [*mutmut, "run", "--max-children", str(jobs), *only], cwd=work, env=env
+    )
     if code.returncode != 0:
         print(f"error: mutmut failed on {module} (exit {code.returncode})", file=sys.stderr)
         return None
@@ -269,7 +296,7 @@ def read_score(module: str, work: Path) -> Score:
 def report(scores: list[Score]) -> str:
     out = []
     for s in scores:
-        out.append(f"{s.module}: killed {s.killed} of {s.total}")
+        out.append(f"{s.module}: {s.summary()}")
         for name in s.survivors():
             out.append(f"  {s.status[name]}: {name}")
             out += [f"      {line.strip()}" for line in s.diffs.get(name, [])]
@@ -288,12 +315,12 @@ def main(argv: list[str] | None = None) -> int:
     failed = []
     try:
         for module in args.modules:
-            score = run_module(module, args.jobs, args.rev)
+            score = run_module(module, args.jobs, args.rev, args.only)
             if score is None:
                 failed.append(module)
             else:
                 scores.append(score)
-                print(f"{module}: killed {score.killed} of {score.total}", flush=True)
+                print(f"{module}: {score.summary()}", flush=True)
     except KeyboardInterrupt:
         print("\ninterrupted: the sources were never touched (mutants live in .mutants/)")
         if scores:

@@ -39,10 +39,16 @@ def test_modules_are_named_as_paths_and_kept_in_order_once():
     ]
     assert args.jobs == 2
     assert args.rev is None
+    assert args.only == []
 
 
 def test_no_module_means_every_mapped_one():
     assert mutants.parse_args([]).modules == list(mutants.TESTS_FOR)
+
+
+def test_only_patterns_are_kept_in_order():
+    args = mutants.parse_args(["--only", "*x_f__*", "--only", "*x_g__mutmut_1"])
+    assert args.only == ["*x_f__*", "*x_g__mutmut_1"]
 
 
 @pytest.mark.parametrize(
@@ -82,6 +88,21 @@ def test_the_score_counts_timeouts_as_killed_and_lists_the_rest():
     assert text.splitlines()[0] == "m.py: killed 2 of 4"
     assert "+    return a <= b".strip() in text
     assert text.splitlines()[-1] == "killed 2 of 4"
+
+
+def test_mutants_left_out_by_only_are_neither_killed_nor_survivors():
+    score = mutants.Score("m.py")
+    score.status = {
+        "m.x_f__mutmut_1": "killed",
+        "m.x_f__mutmut_2": "survived",
+        "m.x_g__mutmut_1": "not checked",
+        "m.x_g__mutmut_2": "not checked",
+    }
+    assert (score.killed, score.total, score.not_run) == (1, 2, 2)
+    assert score.survivors() == ["m.x_f__mutmut_2"]
+    text = mutants.report([score])
+    assert text.splitlines()[0] == "m.py: killed 1 of 2 run, 2 not run"
+    assert text.splitlines()[-1] == "killed 1 of 2"
 
 
 def test_the_copy_lives_in_an_ignored_folder():
