@@ -10,9 +10,13 @@ Part 1, points 3-5: a' = {3, 4}, b' = {4, 5}, c' = {3, 5} at 1 each. Once: each 
 sums to 1 at the least 1.5, all three at 0.5 (the only optimum). Twice: all three, 3.
 """
 
+import threading
+import time
+
 import numpy as np
 import pytest
 
+from autoscoop_blender.core.optimize import bound
 from autoscoop_blender.core.optimize.bound import (
     LPProgress,
     combined_bound,
@@ -170,3 +174,122 @@ def test_the_mast_aware_milp_counts_a_point_only_at_its_k():
     inst = CoverInstance(instance([[0, 1], [0]], 2, 1).matrix, 1, need=np.full(2, 2, np.int32))
     got = drain(sensors_on_sites(inst, np.zeros(2, np.int64), np.array([0]), [0, 1], 0.0, 1.0))
     assert sorted(got) == [0, 1]
+
+
+def _split(inst, initial=(), **kwargs):
+    """``split_cover_lp`` on ROWS' candidates and parts, run to its end."""
+    group = kwargs.pop("group", np.arange(len(COST)))
+    start = np.asarray(initial, dtype=np.int64)
+    return drain(split_cover_lp(inst, COST, group, start, PART, **kwargs))
+
+
+def test_one_column_a_round_still_reaches_the_lp():
+    """All seven candidates at one position: one joins per round, so the parts take
+    several rounds; each still runs to its LP value, 1.1 and 1.5, not to the first
+    bound whose ceiling matches (2 and 2)."""
+    inst = instance(ROWS, 6, 6)
+    sol = _split(inst, group=np.zeros(7, np.int64), rel_gap=0)
+    assert sol.rounds > 4 and sol.complete
+    assert sol.value == pytest.approx(2.6)
+    assert sol.bound == pytest.approx(2.6, rel=1e-5) and sol.bound <= 2.6
+
+
+def test_the_default_gap_is_half_a_percent():
+    """From a, b, a', b' the first round's bound is 1.6 (each part's value 2, priced at
+    Farley's scale); by default the parts go on until within 0.5 % of 2.6."""
+    sol = _split(instance(ROWS, 6, 6), [0, 1, 4, 5])
+    assert 2.6 * (1 - 0.005) <= sol.bound <= 2.6
+
+
+def test_a_part_stopped_in_its_first_solve_counts_nothing(monkeypatch):
+    """Part 0's first solve is cut short (as by a stop): the part gives no line, the
+    LP is not complete, and part 1 is still solved: 1.5 for the three points it must
+    cover then (part 0 may cover its three for nothing, as far as is proven)."""
+    solves = []
+    real_run = bound._run
+
+    def run(h, stop=None):
+        solves.append(h)
+        if len(solves) == 1:
+            return False  # cut short: cover_lp drops the round
+        return (yield from real_run(h, stop))
+
+    monkeypatch.setattr(bound, "_run", run)
+    sol = _split(instance(ROWS, 6, 6), rel_gap=0)
+    assert sol.complete is False
+    assert sol.value == pytest.approx(1.5)
+    assert sol.bound == pytest.approx(1.5, rel=1e-5) and sol.bound <= 1.5
+
+
+def test_a_past_deadline_ends_each_part_after_its_first_round():
+    """Started from a, b, a', b' (each part 2, 4 in all) with the deadline gone: each
+    part solves its LP over those columns once and stops there, incomplete; the
+    bound still holds."""
+    inst = instance(ROWS, 6, 6)
+    sol = _split(inst, [0, 1, 4, 5], rel_gap=0, deadline=time.perf_counter() - 1.0)
+    assert sol.rounds == 2 and not sol.complete
+    assert sol.value == pytest.approx(4.0)
+    assert sol.columns.tolist() == [0, 1, 4, 5]
+    assert 0.0 <= sol.bound <= 2.6
+
+
+def test_a_stop_set_before_the_start_ends_each_part_at_once():
+    stop = threading.Event()
+    stop.set()
+    sol = _split(instance(ROWS, 6, 6), [0, 1, 4, 5], rel_gap=0, stop=stop)
+    assert sol.rounds <= 2 and not sol.complete
+    assert sol.bound <= 2.6
+
+
+def test_a_wide_gap_stops_a_part_before_its_lp_is_complete():
+    """Stopping once the bound is within 99 % of the value: from a, b, a', b' the first
+    round's bound (Farley's, positive) already is, so each part stops after it."""
+    sol = _split(instance(ROWS, 6, 6), [0, 1, 4, 5], rel_gap=0.99)
+    assert sol.rounds == 2 and not sol.complete
+    assert 0.0 < sol.bound <= 2.6
+
+
+def test_parts_no_candidate_sees_or_one_candidate_sees():
+    """Points: 0 (part 0) and 5 (part 2) no candidate sees; 1-3 (part 1) the triangle
+    with e = {1} at 0.1 (1.1, as above); 4 (part 2) only d sees, at 1. The goal, the
+    four points that can be covered, costs 2.1, whichever part comes first."""
+    rows = [[1, 2], [2, 3], [1, 3], [1], [4]]
+    inst = instance(rows, 6, 4)
+    cost = np.array([1.0, 1.0, 1.0, 0.1, 1.0])
+    part = np.array([0, 1, 1, 1, 2, 2])
+    sol = drain(split_cover_lp(inst, cost, np.arange(5), np.zeros(0, np.int64), part, rel_gap=0))
+    assert sol.complete and sol.value == pytest.approx(2.1)
+    assert sol.bound == pytest.approx(2.1, rel=1e-5) and sol.bound <= 2.1
+
+
+def test_tied_points_split_by_their_index():
+    """Points on three lines x = 0, 1, 2 (in random order, y = 0) split into halves
+    at x: where the cut falls among equal x, the lower indices go to the first part,
+    so the parts are the same on every machine (numpy's default sort may reorder
+    equal keys, differently with its SIMD kernels)."""
+    x = np.random.default_rng(0).integers(0, 3, 40).astype(float)
+    part = parts_of(np.column_stack([x, np.zeros(40)]), 2)
+    order = np.lexsort((np.arange(40), x))  # by x, then by index
+    assert part[order].tolist() == [0] * 20 + [1] * 20
+
+
+def test_the_mast_aware_milp_is_limited_in_nodes_and_by_the_deadline(monkeypatch):
+    """The Highs model is built with ``mip_max_nodes`` (the same plan on a fast and a
+    slow machine) and the time left to the deadline."""
+    made = []
+
+    def keep(limit):
+        h = new_highs(limit)
+        made.append(h)
+        return h
+
+    new_highs = bound._new_highs
+    monkeypatch.setattr(bound, "_new_highs", keep)
+    inst = instance([[0, 1], [1]], 2, 2)
+    deadline = time.perf_counter() + 30.0
+    got = drain(sensors_on_sites(inst, np.zeros(2, np.int64), np.array([0]), [0, 1], 1.0, 1.0,
+                                 deadline=deadline))  # fmt: skip
+    assert got == [0]
+    (h,) = made
+    assert h.getOptionValue("mip_max_nodes")[1] == bound.MAX_NODES
+    assert 25.0 < h.getOptionValue("time_limit")[1] <= 30.0
