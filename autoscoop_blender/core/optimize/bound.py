@@ -109,6 +109,14 @@ def _empty_rows(h: highspy.Highs, lower: F64, upper: F64) -> None:
     h.addRows(len(lower), lower, upper, 0, none, none, np.zeros(0))
 
 
+def _le_zero_rows(h: highspy.Highs, rows: sparse.csr_matrix) -> None:
+    """Rows ``rows @ columns <= 0`` (rows: (R, columns so far), CSR)."""
+    n = rows.shape[0]
+    h.addRows(n, np.full(n, -highspy.kHighsInf), np.zeros(n), rows.nnz,
+              rows.indptr[:-1].astype(np.int32), rows.indices.astype(np.int32),
+              rows.data.astype(float))  # fmt: skip
+
+
 def _add_columns(
     h: highspy.Highs,
     matrix: sparse.csr_matrix,
@@ -623,29 +631,19 @@ def sensors_on_sites(
     none = np.zeros(0, dtype=np.int32)
     h.addCols(n_sites, cost_at(mast_cost, sites), np.zeros(n_sites), np.ones(n_sites), 0,
               np.zeros(n_sites, dtype=np.int32), none, np.zeros(0))  # fmt: skip
-    # x_c - y_s <= 0, one row per candidate
-    index = np.empty(2 * n_cols, dtype=np.int32)
-    index[0::2] = n + np.arange(n_cols)
-    index[1::2] = n + n_cols + site_idx
-    value = np.tile([1.0, -1.0], n_cols)
-    h.addRows(n_cols, np.full(n_cols, -highspy.kHighsInf), np.zeros(n_cols), 2 * n_cols,
-              (2 * np.arange(n_cols)).astype(np.int32), index, value)  # fmt: skip
+    # Columns: the n u, then the x of cols, then the y of sites. Rows, each <= 0:
+    # x_c - y_s for each candidate, and with a cap sum_{c at s} x_c - cap y_s per site.
+    x_col, y_col = n + np.arange(n_cols), n + n_cols + np.arange(n_sites)
+    row, col = [np.arange(n_cols)] * 2, [x_col, y_col[site_idx]]
+    val = [np.ones(n_cols), -np.ones(n_cols)]
+    n_rows = n_cols
     if inst.cap is not None:
-        # sum_{c at s} x_c - cap y_s <= 0, one row per site
-        order = np.argsort(site_idx, kind="stable")
-        starts = np.searchsorted(site_idx[order], np.arange(n_sites))
-        index = np.empty(n_cols + n_sites, dtype=np.int32)
-        value = np.empty(n_cols + n_sites)
-        row_start = starts + np.arange(n_sites)  # each row: its candidates, then y_s
-        for s_k in range(n_sites):
-            at = order[starts[s_k] : starts[s_k + 1] if s_k + 1 < n_sites else n_cols]
-            lo = row_start[s_k]
-            index[lo : lo + len(at)] = n + at
-            value[lo : lo + len(at)] = 1.0
-            index[lo + len(at)] = n + n_cols + s_k
-            value[lo + len(at)] = -float(inst.cap)
-        h.addRows(n_sites, np.full(n_sites, -highspy.kHighsInf), np.zeros(n_sites),
-                  n_cols + n_sites, row_start.astype(np.int32), index, value)  # fmt: skip
+        row += [n_cols + site_idx, n_cols + np.arange(n_sites)]
+        col += [x_col, y_col]
+        val += [np.ones(n_cols), np.full(n_sites, -float(inst.cap))]
+        n_rows += n_sites
+    rows = (np.concatenate(val), (np.concatenate(row), np.concatenate(col)))
+    _le_zero_rows(h, sparse.csr_matrix(rows, shape=(n_rows, n + n_cols + n_sites)))
     # With k > 1 a point's u must be whole too: one of its k would count it half.
     binary = np.arange(0 if inst.multi else n, n + n_cols + n_sites, dtype=np.int32)
     h.changeColsIntegrality(
