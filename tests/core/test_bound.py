@@ -10,6 +10,7 @@ Part 1, points 3-5: a' = {3, 4}, b' = {4, 5}, c' = {3, 5} at 1 each. Once: each 
 sums to 1 at the least 1.5, all three at 0.5 (the only optimum). Twice: all three, 3.
 """
 
+import itertools
 import threading
 import time
 
@@ -293,3 +294,130 @@ def test_the_mast_aware_milp_is_limited_in_nodes_and_by_the_deadline(monkeypatch
     (h,) = made
     assert h.getOptionValue("mip_max_nodes")[1] == bound.MAX_NODES
     assert 25.0 < h.getOptionValue("time_limit")[1] <= 30.0
+
+
+def _duals(priced, value=5.0, **kwargs):
+    """A sensors LP's solution as ``mast_aware_bound`` reads it: the value and each
+    candidate's dual weight."""
+    priced = np.asarray(priced, dtype=float)
+    return bound.LPSolution(value, value, np.arange(len(priced)), np.ones(len(priced)),
+                            priced, 1.0 - priced, 3, True, **kwargs)  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("mast_cost", "sensor_cost", "lp_cost", "t"),
+    [
+        # site 1 holds c2 (priced 3): 3t - 1 <= 1 gives t = 2/3 (site 0 pays 1/3 then)
+        (1.0, 1.0, None, 2 / 3),
+        # site 1's mast at 5 lets t reach 1, where site 0 pays (2 - 1) + (1 - 1) = 1
+        (np.array([1.0, 5.0]), 1.0, None, 1.0),
+        # dear masts: t above 1; site 1: 3t - 1 <= 10 (11/3), site 0: 3t - 2 <= 10 (4)
+        (10.0, 1.0, None, 11 / 3),
+        # a sensor at 2: 2 (3t - 1) <= 1, t = 1/2
+        (1.0, 2.0, None, 0.5),
+        # the LP's costs 2, 1, 1.5: 3t - 1.5 <= 1 gives t = 5/6 (site 0 pays nothing)
+        (1.0, 1.0, np.array([2.0, 1.0, 1.5]), 5 / 6),
+    ],
+)
+def test_the_mast_aware_bound_scales_the_duals_by_the_largest_t_every_site_pays(
+    mast_cost, sensor_cost, lp_cost, t
+):
+    """c0 (priced 2) and c1 (1) at site 0, c2 (3) at site 1; the sensors LP's value 5:
+    the bound is t x sensor_cost x 5 for the largest t at which each site's mast pays
+    what its candidates are priced above their cost, sensor_cost max(0, t priced -
+    cost) summed."""
+    got = bound.mast_aware_bound(_duals([2.0, 1.0, 3.0]), np.array([0, 0, 1]), mast_cost,
+                                 sensor_cost, lp_cost)  # fmt: skip
+    want = t * sensor_cost * 5.0
+    assert got == pytest.approx(want, rel=1e-5) and got <= want
+
+
+def test_the_mast_aware_bound_takes_the_point_duals_value_at_k2_and_refuses_parts():
+    """With k > 1 the LP's value holds the x <= 1 bounds' duals too: the bound scales
+    the point duals' value (4 here) instead. Duals of parts are not one solution of
+    the whole, a sensor that costs nothing prices nothing, and an LP stopped before
+    its first solve has no duals: 0."""
+    site_of = np.array([0, 0, 1])
+    got = bound.mast_aware_bound(_duals([2.0, 1.0, 3.0], dual=4.0), site_of, 1.0, 1.0)
+    assert got == pytest.approx(2 / 3 * 4.0, rel=1e-5)
+    assert bound.mast_aware_bound(_duals([2.0, 1.0, 3.0], parts=2), site_of, 1.0, 1.0) == 0.0
+    assert bound.mast_aware_bound(_duals([2.0, 1.0, 3.0]), site_of, 1.0, 0.0) == 0.0
+    assert bound.mast_aware_bound(_duals([2.0, 1.0, 3.0], np.inf), site_of, 1.0, 1.0) == 0.0
+    # One candidate (priced 2) on its mast at 1: 2t - 1 <= 1, t = 1.
+    got = bound.mast_aware_bound(_duals([2.0]), np.array([0]), 1.0, 1.0)
+    assert got == pytest.approx(5.0, rel=1e-5)
+    # More sites priced than hold candidates: site 2 has none and pays nothing.
+    three = np.array([1.0, 1.0, 0.0])
+    got = bound.mast_aware_bound(_duals([2.0, 1.0, 3.0]), site_of, three, 1.0)
+    assert got == pytest.approx(2 / 3 * 5.0, rel=1e-5)
+
+
+def _part0(**kwargs):
+    """``cover_lp`` on part 0 alone (points 0-2: a, b, c, e; LP 1.1), every candidate
+    at one position unless ``group`` says otherwise: (solution, progress reports)."""
+    group = kwargs.pop("group", np.zeros(4, np.int64))
+    start = np.asarray(kwargs.pop("initial", ()), dtype=np.int64)
+    gen = cover_lp(instance(ROWS[:4], 3, 3), COST[:4], group, start, **kwargs)
+    reports = []
+    while True:
+        try:
+            step = next(gen)
+        except StopIteration as done:
+            return done.value, reports
+        if step is not None:
+            reports.append(step)
+
+
+@pytest.mark.parametrize(
+    ("group", "per_round", "columns"),
+    [
+        ([0, 0, 0, 0], 50, [0, 1, 2, 3, 4]),  # one position: one joins a round
+        ([0, 1, 2, 3], 50, [0, 4]),  # four positions: all join in round 1
+        ([0, 1, 2, 3], 1, [0, 1, 2, 3, 4]),  # at most per_round a round
+    ],
+)
+def test_candidates_join_one_per_position_and_at_most_per_round(group, per_round, columns):
+    """From nothing (the artificial column alone: 3, one per point), candidates join
+    after each round until none prices below its cost: the LP, 1.1, every report's
+    bound at most that, its values never rising."""
+    sol, reports = _part0(group=np.array(group), per_round=per_round, integral=False)
+    assert [r.columns for r in reports] == columns
+    assert [r.rounds for r in reports] == list(range(1, len(columns) + 1))
+    assert reports[0].value == pytest.approx(3.0)
+    assert all(b.value <= a.value + 1e-9 for a, b in itertools.pairwise(reports))
+    assert all(r.bound <= 1.1 for r in reports)
+    assert sol.complete and sol.rounds == len(columns)
+    assert sol.value == pytest.approx(1.1) and sol.bound == pytest.approx(1.1, rel=1e-5)
+
+
+def test_the_integral_stop_and_the_lp_as_a_line_in_the_goal():
+    """An integer objective stops once the bound's ceiling meets the value's: the
+    first bound is already 1.1 (ceiling 2), and the value reaches 2 with a's column,
+    after round 2. Either way the line is LP(g) = 0.5 g - 0.4 for goals 1 to 3 (e
+    covers point 0 for 0.1; then each point costs 0.5: b at 1/2 covers 1 and 2 by
+    half each), exact at every such g."""
+    sol, reports = _part0()
+    assert sol.rounds == 2 and not sol.complete
+    assert sol.value == pytest.approx(2.0) and sol.integer_bound() == 2
+    full, _ = _part0(integral=False)
+    for lp in (sol, full):
+        for goal, value in ((1, 0.1), (2, 0.6), (3, 1.1)):
+            # lowered against the solver's tolerances by 1e-6 relative and 1e-6 absolute
+            assert lp.slope * goal - lp.intercept == pytest.approx(value, abs=1e-5)
+            assert lp.slope * goal - lp.intercept <= value
+
+
+def test_an_lp_stopped_in_its_first_solve_keeps_its_start(monkeypatch):
+    """Cut short before any solve: the start as the plan (each candidate once, x = 1),
+    no value, no bound, nothing priced."""
+
+    def run(h, stop=None):
+        return False
+        yield  # a generator, as _run
+
+    monkeypatch.setattr(bound, "_run", run)
+    sol, reports = _part0(initial=[3, 1, 3])
+    assert reports == [] and sol.rounds == 0 and not sol.complete
+    assert sol.value == np.inf and sol.bound == 0.0 and sol.integer_bound() == 0
+    assert sol.columns.tolist() == [1, 3] and sol.x.tolist() == [1.0, 1.0]
+    assert len(sol.priced) == 0 and np.isinf(sol.reduced).all() and len(sol.reduced) == 4
