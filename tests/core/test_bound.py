@@ -1,7 +1,10 @@
-"""The bound code on hand cases: the LP in parts returns the whole LP's solution, not
-just its bound; the parts follow the points' extent; the mast-aware MILP counts a
-candidate once and keeps within the cap; the fewest masts count each point's k and
-masts that stand. The LP optima below are worked out on paper (each unique).
+"""The bound code on hand cases: column generation round by round (one candidate per
+position, the integral stop, the LP as a line in the goal); the LP in parts returns
+the whole LP's solution, not just its bound, and stops at a deadline, a stop, its gap
+or a solve cut short; the parts follow the points' extent; the mast-aware bound's
+scale per site; the mast-aware MILP counts a candidate once, keeps within the cap and
+its limits; the fewest masts count each point's k and masts that stand. The LP
+optima below are worked out on paper (each unique).
 
 Part 0, points 0-2: a = {0, 1}, b = {1, 2}, c = {0, 2} at 1 each and e = {0} at 0.1.
 Every point once: e + b = 1.1 (point 1 needs a or b, point 2 b or c; b does both).
