@@ -180,6 +180,21 @@ def test_the_mast_aware_milp_counts_a_point_only_at_its_k():
     assert sorted(got) == [0, 1]
 
 
+def _cut_short(monkeypatch, cut):
+    """Replace ``bound._run``: solve number i (from 1) returns at once, unsolved and
+    cut short, when ``cut(i, stop)`` (stop: the event the solve was handed), as a
+    real one does when a stop comes before HiGHS finishes, but not by timing."""
+    real_run = bound._run
+    count = itertools.count(1)
+
+    def run(h, stop=None):
+        if cut(next(count), stop):
+            return False
+        return (yield from real_run(h, stop))
+
+    monkeypatch.setattr(bound, "_run", run)
+
+
 def _split(inst, initial=(), **kwargs):
     """``split_cover_lp`` on ROWS' candidates and parts, run to its end."""
     group = kwargs.pop("group", np.arange(len(COST)))
@@ -209,16 +224,7 @@ def test_a_part_stopped_in_its_first_solve_counts_nothing(monkeypatch):
     """Part 0's first solve is cut short (as by a stop): the part gives no line, the
     LP is not complete, and part 1 is still solved: 1.5 for the three points it must
     cover then (part 0 may cover its three for nothing, as far as is proven)."""
-    solves = []
-    real_run = bound._run
-
-    def run(h, stop=None):
-        solves.append(h)
-        if len(solves) == 1:
-            return False  # cut short: cover_lp drops the round
-        return (yield from real_run(h, stop))
-
-    monkeypatch.setattr(bound, "_run", run)
+    _cut_short(monkeypatch, lambda i, stop: i == 1)
     sol = _split(instance(ROWS, 6, 6), rel_gap=0)
     assert sol.complete is False
     assert sol.value == pytest.approx(1.5)
@@ -413,14 +419,60 @@ def test_the_integral_stop_and_the_lp_as_a_line_in_the_goal():
 def test_an_lp_stopped_in_its_first_solve_keeps_its_start(monkeypatch):
     """Cut short before any solve: the start as the plan (each candidate once, x = 1),
     no value, no bound, nothing priced."""
-
-    def run(h, stop=None):
-        return False
-        yield  # a generator, as _run
-
-    monkeypatch.setattr(bound, "_run", run)
+    _cut_short(monkeypatch, lambda i, stop: True)
     sol, reports = _part0(initial=[3, 1, 3])
     assert reports == [] and sol.rounds == 0 and not sol.complete
     assert sol.value == np.inf and sol.bound == 0.0 and sol.integer_bound() == 0
     assert sol.columns.tolist() == [1, 3] and sol.x.tolist() == [1.0, 1.0]
     assert len(sol.priced) == 0 and np.isinf(sol.reduced).all() and len(sol.reduced) == 4
+
+
+# Three sites around three points, each seeing two: the LP opens each by half (1.5),
+# the MILP two.
+TRIANGLE = instance([[0, 1], [1, 2], [0, 2]], 3, 3)
+
+
+def test_the_fewest_masts_lp_alone_rounds_its_value_up():
+    sol = drain(site_cover(TRIANGLE, np.arange(3), 3, milp=False))
+    assert sol.bound == 2 and len(sol.sites) == 0 and sol.lp_sites.tolist() == [0, 1, 2]
+    # Whole values stay: one site that sees all, 1; two that each see one point, 2;
+    # and a site that stands costs 0.
+    one = instance([[0, 1, 2]], 3, 3)
+    assert drain(site_cover(one, np.zeros(1, np.int64), 1, milp=False)).bound == 1
+    two = instance([[0], [1]], 2, 2)
+    assert drain(site_cover(two, np.arange(2), 2, milp=False)).bound == 2
+    standing = np.array([True])
+    sol = drain(site_cover(one, np.zeros(1, np.int64), 1, milp=False, standing=standing))
+    assert sol.bound == 0
+
+
+def test_the_fewest_masts_stopped_keep_what_they_proved(monkeypatch):
+    """A stop before the start: nothing proven, no site. A stop during the MILP: the
+    LP's bound rounded up and its sites, no MILP set."""
+    stop = threading.Event()
+    _cut_short(monkeypatch, lambda i, given: given is stop)
+    sol = drain(site_cover(TRIANGLE, np.arange(3), 3, stop=stop))
+    assert sol.bound == 0 and len(sol.sites) == 0 and len(sol.lp_sites) == 0
+    monkeypatch.undo()
+    _cut_short(monkeypatch, lambda i, given: i == 2 and given is stop)
+    sol = drain(site_cover(TRIANGLE, np.arange(3), 3, stop=stop))
+    assert sol.bound == 2 and len(sol.sites) == 0 and sol.lp_sites.tolist() == [0, 1, 2]
+
+
+def test_a_point_halfway_covered_counts_no_mast():
+    """Points 0 and 1, each needed twice, the goal one of them; three sites each see
+    both with one candidate. One site brings both halfway, which counts nothing: two
+    masts, as for a whole point."""
+    inst = CoverInstance(instance([[0, 1]] * 3, 2, 1).matrix, 1, need=np.full(2, 2, np.int32))
+    sol = drain(site_cover(inst, np.arange(3), 3))
+    assert sol.bound == 2 and len(sol.sites) == 2
+
+
+def test_the_fewest_masts_solves_stop_at_the_deadline(monkeypatch):
+    """Both models, the LP's and the MILP's, get the time left to the deadline."""
+    made = []
+    new_highs = bound._new_highs
+    monkeypatch.setattr(bound, "_new_highs", lambda limit: made.append(limit) or new_highs(limit))
+    sol = drain(site_cover(TRIANGLE, np.arange(3), 3, deadline=time.perf_counter() + 30.0))
+    assert sol.bound == 2 and len(made) == 2
+    assert all(25.0 < limit <= 30.0 for limit in made)
