@@ -352,6 +352,10 @@ def test_the_mast_aware_bound_takes_the_point_duals_value_at_k2_and_refuses_part
     assert bound.mast_aware_bound(_duals([2.0, 1.0, 3.0], parts=2), site_of, 1.0, 1.0) == 0.0
     assert bound.mast_aware_bound(_duals([2.0, 1.0, 3.0]), site_of, 1.0, 0.0) == 0.0
     assert bound.mast_aware_bound(_duals([2.0, 1.0, 3.0], np.inf), site_of, 1.0, 1.0) == 0.0
+    # Small values scale as any: 2/3 x 0.3; an LP worth 0 proves nothing more.
+    got = bound.mast_aware_bound(_duals([2.0, 1.0, 3.0], 0.3), site_of, 1.0, 1.0)
+    assert got == pytest.approx(0.2, rel=1e-5) and got <= 0.2
+    assert bound.mast_aware_bound(_duals([2.0, 1.0, 3.0], 0.0), site_of, 1.0, 1.0) == 0.0
     # One candidate (priced 2) on its mast at 1: 2t - 1 <= 1, t = 1.
     got = bound.mast_aware_bound(_duals([2.0]), np.array([0]), 1.0, 1.0)
     assert got == pytest.approx(5.0, rel=1e-5)
