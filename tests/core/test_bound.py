@@ -480,3 +480,14 @@ def test_the_fewest_masts_solves_stop_at_the_deadline(monkeypatch):
     sol = drain(site_cover(TRIANGLE, np.arange(3), 3, deadline=time.perf_counter() + 30.0))
     assert sol.bound == 2 and len(made) == 2
     assert all(25.0 < limit <= 30.0 for limit in made)
+
+
+@pytest.mark.parametrize(
+    ("value", "want"), [(2.0, 2), (2.0 - 5e-7, 2), (1.5, 2), (2.01, 3), (-0.5, 0), (0.0, 0)]
+)
+def test_the_integer_bound_is_the_next_whole_number(value, want):
+    """A bound lowered against the solver's tolerances (up to 1e-6 under a whole number)
+    still proves that number; never below 0."""
+    lp = bound.LPSolution(3.0, value, np.zeros(0, np.int64), np.zeros(0), np.zeros(0),
+                          np.zeros(0), 1, False)  # fmt: skip
+    assert lp.integer_bound() == want
