@@ -491,3 +491,15 @@ def test_the_integer_bound_is_the_next_whole_number(value, want):
     lp = bound.LPSolution(3.0, value, np.zeros(0, np.int64), np.zeros(0), np.zeros(0),
                           np.zeros(0), 1, False)  # fmt: skip
     assert lp.integer_bound() == want
+
+
+def test_the_mast_aware_milp_stopped_before_the_start_keeps_the_start(monkeypatch):
+    """The cap case above at two per mast, stopped before HiGHS starts: the plan is
+    the start (23), not the optimum (22) that a finished solve returns."""
+    rows = [[0], [0, 1], [1], [2, 3], [2], [3]]
+    site_of = np.array([0, 1, 0, 2, 0, 0])
+    inst = CoverInstance(instance(rows, 4, 4).matrix, 4, site_of=site_of, cap=2)
+    stop = threading.Event()
+    _cut_short(monkeypatch, lambda i, given: given is stop)
+    got = drain(sensors_on_sites(inst, site_of, np.arange(3), [0, 2, 3], 10.0, 1.0, stop=stop))
+    assert got == [0, 2, 3]
