@@ -503,3 +503,14 @@ def test_the_mast_aware_milp_stopped_before_the_start_keeps_the_start(monkeypatc
     _cut_short(monkeypatch, lambda i, given: given is stop)
     got = drain(sensors_on_sites(inst, site_of, np.arange(3), [0, 2, 3], 10.0, 1.0, stop=stop))
     assert got == [0, 2, 3]
+
+
+def test_an_lp_of_goal_0_claims_nothing_for_other_goals():
+    """Nothing to cover costs 0, and no round's duals prove more than 0 for it: the
+    line keeps claiming nothing (0 g - 0), below part 0's LP at every goal."""
+    gen = cover_lp(instance(ROWS[:4], 3, 0), COST[:4], np.arange(4), np.zeros(0, np.int64),
+                   integral=False)  # fmt: skip
+    sol = drain(gen)
+    assert sol.value == pytest.approx(0.0, abs=1e-9) and sol.bound <= 1e-9
+    for goal, value in ((1, 0.1), (2, 0.6), (3, 1.1)):
+        assert sol.slope * goal - sol.intercept <= value
