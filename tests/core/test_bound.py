@@ -183,7 +183,9 @@ def test_the_mast_aware_milp_counts_a_point_only_at_its_k():
 def _cut_short(monkeypatch, cut):
     """Replace ``bound._run``: solve number i (from 1) returns at once, unsolved and
     cut short, when ``cut(i, stop)`` (stop: the event the solve was handed), as a
-    real one does when a stop comes before HiGHS finishes, but not by timing."""
+    real one does when a stop comes before HiGHS finishes, but not by timing. The
+    tests hand in an event they never set (the fake stands for its being set while
+    HiGHS works), so that a solve not handed the caller's stop runs to its end."""
     real_run = bound._run
     count = itertools.count(1)
 
@@ -421,10 +423,11 @@ def test_the_integral_stop_and_the_lp_as_a_line_in_the_goal():
 
 
 def test_an_lp_stopped_in_its_first_solve_keeps_its_start(monkeypatch):
-    """Cut short before any solve: the start as the plan (each candidate once, x = 1),
+    """Stopped in its first solve: the start as the plan (each candidate once, x = 1),
     no value, no bound, nothing priced."""
-    _cut_short(monkeypatch, lambda i, stop: True)
-    sol, reports = _part0(initial=[3, 1, 3])
+    stop = threading.Event()
+    _cut_short(monkeypatch, lambda i, given: given is stop)
+    sol, reports = _part0(initial=[3, 1, 3], stop=stop)
     assert reports == [] and sol.rounds == 0 and not sol.complete
     assert sol.value == np.inf and sol.bound == 0.0 and sol.integer_bound() == 0
     assert sol.columns.tolist() == [1, 3] and sol.x.tolist() == [1.0, 1.0]
