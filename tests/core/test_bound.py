@@ -31,7 +31,7 @@ from autoscoop_blender.core.optimize.bound import (
     split_cover_lp,
 )
 from autoscoop_blender.core.optimize.cover import CoverInstance
-from tests.core.test_lp import drain, instance
+from tests.core.test_lp import drain, instance, random_instance
 
 ROWS = [[0, 1], [1, 2], [0, 2], [0], [3, 4], [4, 5], [3, 5]]
 COST = np.array([1.0, 1.0, 1.0, 0.1, 1.0, 1.0, 1.0])
@@ -517,3 +517,30 @@ def test_an_lp_of_goal_0_claims_nothing_for_other_goals():
     assert sol.value == pytest.approx(0.0, abs=1e-9) and sol.bound <= 1e-9
     for goal, value in ((1, 0.1), (2, 0.6), (3, 1.1)):
         assert sol.slope * goal - sol.intercept <= value
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_every_rounds_bound_stays_below_the_lp(seed):
+    """Random instances with candidates as cheap as 0.05 (priced above their cost
+    early on), one joining per round: every round's bound, Farley's or the
+    Lagrangian's, is at most the LP's value, which the last round reaches."""
+    rng = np.random.default_rng(900 + seed)
+    inst = random_instance(rng, n_cand=14, n_points=30)
+    cost = rng.uniform(0.05, 2.0, 14)
+    whole = drain(cover_lp(inst, cost, np.arange(14), np.zeros(0, np.int64), integral=False))
+    assert whole.complete
+    gen = cover_lp(inst, cost, np.arange(14), np.zeros(0, np.int64), per_round=1, integral=False)
+    reports = []
+    while True:
+        try:
+            step = next(gen)
+        except StopIteration as done:
+            sol = done.value
+            break
+        if step is not None:
+            reports.append(step)
+    assert len(reports) > 2
+    assert all(r.bound <= whole.value + 1e-9 for r in reports)
+    assert sol.value == pytest.approx(whole.value, rel=1e-6)
+    # the final bound is the value lowered by 1e-6 relative and 1e-6 absolute
+    assert sol.bound == pytest.approx(whole.value, rel=1e-5, abs=2e-6)
