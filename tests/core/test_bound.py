@@ -389,6 +389,7 @@ def _part0(**kwargs):
         ([0, 0, 0, 0], 50, [0, 1, 2, 3, 4]),  # one position: one joins a round
         ([0, 1, 2, 3], 50, [0, 4]),  # four positions: all join in round 1
         ([0, 1, 2, 3], 1, [0, 1, 2, 3, 4]),  # at most per_round a round
+        ([0, 1, 1, 1], 50, [0, 2, 3, 4]),  # a and one of b, c, e; then one a round
     ],
 )
 def test_candidates_join_one_per_position_and_at_most_per_round(group, per_round, columns):
@@ -519,13 +520,16 @@ def test_an_lp_of_goal_0_claims_nothing_for_other_goals():
         assert sol.slope * goal - sol.intercept <= value
 
 
+@pytest.mark.parametrize("need", [1, 2])
 @pytest.mark.parametrize("seed", range(8))
-def test_every_rounds_bound_stays_below_the_lp(seed):
+def test_every_rounds_bound_stays_below_the_lp(seed, need):
     """Random instances with candidates as cheap as 0.05 (priced above their cost
     early on), one joining per round: every round's bound, Farley's or the
-    Lagrangian's, is at most the LP's value, which the last round reaches."""
+    Lagrangian's, is at most the LP's value, which the last round reaches; with each
+    point needed twice too."""
     rng = np.random.default_rng(900 + seed)
     inst = random_instance(rng, n_cand=14, n_points=30)
+    inst = CoverInstance(inst.matrix, inst.goal, need=np.full(30, need, np.int32))
     cost = rng.uniform(0.05, 2.0, 14)
     whole = drain(cover_lp(inst, cost, np.arange(14), np.zeros(0, np.int64), integral=False))
     assert whole.complete
@@ -544,3 +548,91 @@ def test_every_rounds_bound_stays_below_the_lp(seed):
     assert sol.value == pytest.approx(whole.value, rel=1e-6)
     # the final bound is the value lowered by 1e-6 relative and 1e-6 absolute
     assert sol.bound == pytest.approx(whole.value, rel=1e-5, abs=2e-6)
+
+
+def test_at_k2_the_point_duals_value_less_the_candidates_excess_is_the_lp():
+    """Every point of part 0 twice (a = b = c = 1, the LP 3): the LP's value is its
+    point duals' value less what the x <= 1 bounds' duals take, sum_c max(0, priced -
+    cost), by LP duality; ``mast_aware_bound`` scales the former."""
+    inst = CoverInstance(instance(ROWS[:4], 3, 3).matrix, 3, need=np.full(3, 2, np.int32))
+    sol = drain(cover_lp(inst, COST[:4], np.arange(4), np.zeros(0, np.int64), integral=False))
+    assert sol.complete and sol.value == pytest.approx(3.0)
+    excess = np.maximum(0.0, sol.priced - COST[:4]).sum()
+    assert sol.dual - excess == pytest.approx(3.0, abs=1e-6)
+    assert sol.dual > 3.0 + 1e-3  # the bounds' duals take a share here
+
+
+def test_best_scale_by_hand():
+    """Priced (2, 1) at costs (1, 1): breaks at t = 1/2 and 1. The duals' value 2.5
+    past both (cumulative priced 2, 3): the peak at t = 1, paying 2 - 1. Worth 5, more
+    than all the priced together: the slope stays positive, the last break, 1, paying
+    1. Worth 0 or less, or nothing priced: t = 0, nothing paid."""
+    matrix = instance([[0, 1], [1]], 2, 2).matrix
+    duals = np.array([1.0, 1.0])
+    priced = np.array([2.0, 1.0])
+    cost = np.ones(2)
+    assert bound.best_scale(2.5, priced, cost, matrix, duals) == pytest.approx((1.0, 1.0))
+    assert bound.best_scale(5.0, priced, cost, matrix, duals) == pytest.approx((1.0, 1.0))
+    # priced 1 and 2 at cost 1: breaks 1 and 1/2; at total 5 the last break is t = 1
+    swapped = instance([[0], [0, 1]], 2, 2).matrix
+    got = bound.best_scale(5.0, np.array([1.0, 2.0]), cost, swapped, duals)
+    assert got == pytest.approx((1.0, 1.0))
+    for total in (0.0, -1.0):
+        assert bound.best_scale(total, priced, cost, matrix, duals) == (0.0, 0.0)
+    assert bound.best_scale(2.5, np.zeros(2), cost, matrix, np.zeros(2)) == (0.0, 0.0)
+
+
+class SlowHighs:
+    """Stands for HiGHS on a long solve in ``bound._run``: ``run`` works until
+    ``cancelSolve`` is called, at most ``work_s`` seconds."""
+
+    def __init__(self, work_s):
+        self.work_s = work_s
+        self.cancelled = threading.Event()
+        self.cancels = 0
+
+    def run(self):
+        self.cancelled.wait(self.work_s)
+
+    def cancelSolve(self):  # noqa: N802 (HiGHS' name)
+        self.cancels += 1
+        self.cancelled.set()
+
+
+def _drive(gen):
+    """(the generator's return value, how many times it yielded)."""
+    yields = 0
+    while True:
+        try:
+            next(gen)
+        except StopIteration as done:
+            return done.value, yields
+        yields += 1
+
+
+def test_a_solve_runs_to_its_end_yielding_while_it_works():
+    """0.3 s of work, polled every 0.05 s: yields meanwhile, never cancels."""
+    h = SlowHighs(0.3)
+    finished, yields = _drive(bound._run(h, threading.Event()))
+    assert finished and h.cancels == 0 and yields >= 2
+
+
+def test_a_stop_cancels_the_solve_once():
+    h = SlowHighs(5.0)
+    stop = threading.Event()
+    stop.set()
+    start = time.perf_counter()
+    finished, _ = _drive(bound._run(h, stop))
+    assert not finished and h.cancels == 1
+    assert time.perf_counter() - start < 2.0
+
+
+def test_closing_the_wait_cancels_the_solve():
+    """A caller that drops the generator (the Blender operator cancelled) stops
+    HiGHS at once instead of waiting for it."""
+    h = SlowHighs(5.0)
+    gen = bound._run(h)
+    start = time.perf_counter()
+    next(gen)
+    gen.close()
+    assert h.cancels == 1 and time.perf_counter() - start < 2.0
