@@ -31,7 +31,7 @@ from autoscoop_blender.core.optimize.bound import (
     split_cover_lp,
 )
 from autoscoop_blender.core.optimize.cover import CoverInstance
-from tests.core.test_lp import drain, instance, random_instance
+from tests.core.test_lp import drain, instance, random_instance, steps
 
 ROWS = [[0, 1], [1, 2], [0, 2], [0], [3, 4], [4, 5], [3, 5]]
 COST = np.array([1.0, 1.0, 1.0, 0.1, 1.0, 1.0, 1.0])
@@ -40,22 +40,17 @@ PART = np.array([0, 0, 0, 1, 1, 1])
 X_ONCE = {1: 1.0, 3: 1.0, 4: 0.5, 5: 0.5, 6: 0.5}
 
 
-def _run(need):
+def _parts_lp(need):
     """(split LP's solution, its progress reports) on all six points, each needed
     ``need`` times."""
     inst = CoverInstance(instance(ROWS, 6, 6).matrix, 6, need=np.full(6, need, np.int32))
-    reports = []
     gen = split_cover_lp(inst, COST, np.arange(7), np.zeros(0, np.int64), PART, rel_gap=0)
-    while True:
-        try:
-            step = next(gen)
-        except StopIteration as done:
-            return done.value, [r for r in reports if isinstance(r, LPProgress)]
-        reports.append(step)
+    sol, yielded = steps(gen)
+    return sol, [r for r in yielded if isinstance(r, LPProgress)]
 
 
 def test_the_lp_in_parts_returns_the_whole_lps_solution():
-    sol, reports = _run(1)
+    sol, reports = _parts_lp(1)
     assert sol.parts == 2 and sol.complete
     assert sol.value == pytest.approx(1.1 + 1.5)
     assert sol.bound == pytest.approx(2.6, rel=1e-5) and sol.bound <= 2.6
@@ -82,7 +77,7 @@ def test_the_lp_in_parts_returns_the_whole_lps_solution():
 
 
 def test_the_lp_in_parts_keeps_each_points_k():
-    sol, _ = _run(2)
+    sol, _ = _parts_lp(2)
     assert sol.value == pytest.approx(3.0 + 3.0)
     assert sol.bound == pytest.approx(6.0, rel=1e-5) and sol.bound <= 6.0
 
@@ -372,15 +367,8 @@ def _part0(**kwargs):
     at one position unless ``group`` says otherwise: (solution, progress reports)."""
     group = kwargs.pop("group", np.zeros(4, np.int64))
     start = np.asarray(kwargs.pop("initial", ()), dtype=np.int64)
-    gen = cover_lp(instance(ROWS[:4], 3, 3), COST[:4], group, start, **kwargs)
-    reports = []
-    while True:
-        try:
-            step = next(gen)
-        except StopIteration as done:
-            return done.value, reports
-        if step is not None:
-            reports.append(step)
+    sol, yielded = steps(cover_lp(instance(ROWS[:4], 3, 3), COST[:4], group, start, **kwargs))
+    return sol, [r for r in yielded if r is not None]
 
 
 @pytest.mark.parametrize(
@@ -534,15 +522,8 @@ def test_every_rounds_bound_stays_below_the_lp(seed, need):
     whole = drain(cover_lp(inst, cost, np.arange(14), np.zeros(0, np.int64), integral=False))
     assert whole.complete
     gen = cover_lp(inst, cost, np.arange(14), np.zeros(0, np.int64), per_round=1, integral=False)
-    reports = []
-    while True:
-        try:
-            step = next(gen)
-        except StopIteration as done:
-            sol = done.value
-            break
-        if step is not None:
-            reports.append(step)
+    sol, yielded = steps(gen)
+    reports = [r for r in yielded if r is not None]
     assert len(reports) > 2
     assert all(r.bound <= whole.value + 1e-9 for r in reports)
     assert sol.value == pytest.approx(whole.value, rel=1e-6)
@@ -599,22 +580,11 @@ class SlowHighs:
         self.cancelled.set()
 
 
-def _drive(gen):
-    """(the generator's return value, how many times it yielded)."""
-    yields = 0
-    while True:
-        try:
-            next(gen)
-        except StopIteration as done:
-            return done.value, yields
-        yields += 1
-
-
 def test_a_solve_runs_to_its_end_yielding_while_it_works():
     """0.3 s of work, polled every 0.05 s: yields meanwhile, never cancels."""
     h = SlowHighs(0.3)
-    finished, yields = _drive(bound._run(h, threading.Event()))
-    assert finished and h.cancels == 0 and yields >= 2
+    finished, yields = steps(bound._run(h, threading.Event()))
+    assert finished and h.cancels == 0 and len(yields) >= 2
 
 
 def test_a_stop_cancels_the_solve_once():
@@ -622,7 +592,7 @@ def test_a_stop_cancels_the_solve_once():
     stop = threading.Event()
     stop.set()
     start = time.perf_counter()
-    finished, _ = _drive(bound._run(h, stop))
+    finished, _ = steps(bound._run(h, stop))
     assert not finished and h.cancels == 1
     assert time.perf_counter() - start < 2.0
 

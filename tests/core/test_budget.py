@@ -18,6 +18,7 @@ from autoscoop_blender.core.model.sensors import PAPER_CAMERA, ROADSIDE_LIDAR, T
 from autoscoop_blender.core.problem import Problem, run_estimate
 from autoscoop_blender.core.settings import OptimizeSettings
 from tests.core.flat import flat_scene
+from tests.core.test_lp import drain
 
 GIB = 1 << 30
 # A 10 m x 10 m target at the origin, a 4 m x 4 m sensor area 10 m east of it.
@@ -31,12 +32,7 @@ def hand_scene():
 
 def built(problem):
     """The problem's candidate set, built to the end."""
-    gen = build_candidates(problem)
-    while True:
-        try:
-            next(gen)
-        except StopIteration as done:
-            return done.value
+    return drain(build_candidates(problem))
 
 
 def test_grid_counts_are_arithmetic():

@@ -21,6 +21,7 @@ from autoscoop_blender.core.model.sensors import PAPER_CAMERA
 from autoscoop_blender.core.problem import Problem
 from autoscoop_blender.core.settings import OptimizeSettings
 from tests.core.flat import flat_scene
+from tests.core.test_lp import steps
 
 TARGET = (0.0, 0.0, 10.0, 10.0)  # 100 points at grid_m = 1
 WALL = ((14.0, 3.0, 0.0), (16.0, 7.0, 5.0))  # between the sensors and the target
@@ -34,13 +35,7 @@ def problem(sensor=(20.0, 0.0, 22.0, 2.0), settings=SETTINGS):
 
 def built(p):
     """(the candidate set, the progress reports yielded on the way)."""
-    gen = build_candidates(p)
-    reports = []
-    while True:
-        try:
-            reports.append(next(gen))
-        except StopIteration as done:
-            return done.value, reports
+    return steps(build_candidates(p))
 
 
 def test_every_pose_that_covers_something_is_one_row_with_its_points():

@@ -38,13 +38,19 @@ from tests.core.flat import box_caster, box_mesh
 LP = OptimizeSettings(optimizer="lp", rho=0.9)
 
 
-def drain(gen):
-    """Run a generator to its end; its return value."""
+def steps(gen):
+    """Run a generator to its end: (its return value, what it yielded, in order)."""
+    yielded = []
     while True:
         try:
-            next(gen)
+            yielded.append(next(gen))
         except StopIteration as done:
-            return done.value
+            return done.value, yielded
+
+
+def drain(gen):
+    """Run a generator to its end; its return value."""
+    return steps(gen)[0]
 
 
 def instance(rows, n_points, goal):

@@ -23,6 +23,7 @@ from autoscoop_blender.core.result import Result
 from autoscoop_blender.core.run import Run
 from autoscoop_blender.core.settings import ESParams, OptimizeSettings
 from tests.core.flat import box_caster, box_mesh
+from tests.core.test_lp import drain, steps
 
 FAST = OptimizeSettings(optimizer="es", rho=0.9, es=ESParams(mu=12, lam=6, max_epochs=10))
 BOX = ((30.0, 8.0, 0.0), (34.0, 12.0, 4.0))
@@ -166,14 +167,8 @@ def test_optimizers_run_on_a_problem_without_a_run():
     problem = Problem(road_scene(), BoxCaster([BOX], ground_z=0.0), PAPER_CAMERA, FAST)
     for optimizer in (Greedy(), EvolutionStrategy()):
         solution = Solution(np.zeros(problem.n_targets, dtype=bool))
-        steps = optimizer.solve(problem, solution)
-        phases = []
-        while True:
-            try:
-                phases.append(next(steps).phase)
-            except StopIteration as done:
-                returned = done.value
-                break
+        returned, progress = steps(optimizer.solve(problem, solution))
+        phases = [p.phase for p in progress]
         assert returned is solution and problem.reached(solution.n_covered)
         assert phases.count("fixed") == len(solution.sensors) >= 1
         # The covered points are exactly the union of what the sensors newly covered.
@@ -188,13 +183,7 @@ def test_candidate_rows_are_what_each_pose_covers():
     """Each row of the candidate matrix holds exactly the points ``targeted`` covers
     from that candidate's pose (a sample of rows, evaluated one by one afresh)."""
     problem = Problem(road_scene(), BoxCaster([BOX], ground_z=0.0), PAPER_CAMERA, FAST)
-    steps = build_candidates(problem)
-    while True:
-        try:
-            next(steps)
-        except StopIteration as done:
-            cands = done.value
-            break
+    cands = drain(build_candidates(problem))
     angles = orientations(PAPER_CAMERA.pitch_min_deg, PAPER_CAMERA.pitch_max_deg)
     assert len(angles) == 36 * 6 and np.array_equal(cands.angles[0], angles)
     assert cands.matrix.shape == (len(cands), problem.n_targets) and len(cands) > 1000

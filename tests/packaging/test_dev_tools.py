@@ -74,14 +74,14 @@ def test_the_mutmut_settings_mutate_one_module_with_its_tests():
 
 
 def test_the_score_counts_timeouts_as_killed_and_lists_the_rest():
-    score = mutants.Score("m.py")
-    score.status = {
+    status = {
         "m.x_f__mutmut_10": "survived",
         "m.x_f__mutmut_2": "killed",
         "m.x_f__mutmut_3": "timeout",
         "m.x_g__mutmut_1": "no tests",
     }
-    score.diffs = {"m.x_f__mutmut_10": ["-    return a < b", "+    return a <= b"]}
+    diffs = {"m.x_f__mutmut_10": ["-    return a < b", "+    return a <= b"]}
+    score = mutants.Score("m.py", status, diffs)
     assert (score.killed, score.total) == (2, 4)
     assert score.survivors() == ["m.x_f__mutmut_10", "m.x_g__mutmut_1"]
     text = mutants.report([score])
@@ -91,13 +91,9 @@ def test_the_score_counts_timeouts_as_killed_and_lists_the_rest():
 
 
 def test_mutants_left_out_by_only_are_neither_killed_nor_survivors():
-    score = mutants.Score("m.py")
-    score.status = {
-        "m.x_f__mutmut_1": "killed",
-        "m.x_f__mutmut_2": "survived",
-        "m.x_g__mutmut_1": "not checked",
-        "m.x_g__mutmut_2": "not checked",
-    }
+    status = dict.fromkeys(["m.x_g__mutmut_1", "m.x_g__mutmut_2"], "not checked")
+    status |= {"m.x_f__mutmut_1": "killed", "m.x_f__mutmut_2": "survived"}
+    score = mutants.Score("m.py", status)
     assert (score.killed, score.total, score.not_run) == (1, 2, 2)
     assert score.survivors() == ["m.x_f__mutmut_2"]
     text = mutants.report([score])
