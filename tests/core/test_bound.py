@@ -19,6 +19,8 @@ import time
 
 import numpy as np
 import pytest
+from scipy import sparse
+from scipy.optimize import linprog
 
 from autoscoop_blender.core.optimize import bound
 from autoscoop_blender.core.optimize.bound import (
@@ -529,6 +531,40 @@ def test_every_rounds_bound_stays_below_the_lp(seed, need):
     assert sol.value == pytest.approx(whole.value, rel=1e-6)
     # the final bound is the value lowered by 1e-6 relative and 1e-6 absolute
     assert sol.bound == pytest.approx(whole.value, rel=1e-5, abs=2e-6)
+
+
+def full_lp(inst, cost):
+    """The cover LP with every candidate at once, by scipy's linprog (HiGHS, no column
+    generation): min cost x s.t. M^T x >= k u, sum u >= goal, 0 <= u <= 1, x >= 0
+    (x <= 1 with k > 1)."""
+    n_cand, n = inst.matrix.shape
+    a_points = sparse.hstack([-inst.matrix.T, sparse.diags(inst.k.astype(float))])
+    a_goal = sparse.hstack([sparse.csr_matrix((1, n_cand)), -np.ones((1, n))])
+    res = linprog(
+        np.concatenate([cost, np.zeros(n)]),
+        A_ub=sparse.vstack([a_points, a_goal]).tocsr(),
+        b_ub=np.concatenate([np.zeros(n), [-inst.goal]]),
+        bounds=[(0, 1 if inst.multi else None)] * n_cand + [(0, 1)] * n,
+    )
+    assert res.status == 0
+    return res.fun
+
+
+@pytest.mark.parametrize("need", [1, 2])
+@pytest.mark.parametrize("seed", range(6))
+def test_the_lp_with_candidates_dearer_than_one_is_the_full_lp(seed, need):
+    """Candidates costing 0.5 to 5 (models of different prices): column generation
+    ends at the LP over every candidate, solved at once, and never leaves demand to
+    its artificial column, however cheaper than a candidate that would be."""
+    rng = np.random.default_rng(1300 + seed)
+    inst = random_instance(rng, n_cand=14, n_points=30)
+    seen = np.bincount(inst.matrix.indices, minlength=30)
+    goal = min(inst.goal, int(np.count_nonzero(seen >= need)))
+    inst = CoverInstance(inst.matrix, goal, need=np.full(30, need, np.int32))
+    cost = rng.uniform(0.5, 5.0, 14)
+    sol = drain(cover_lp(inst, cost, np.arange(14), np.zeros(0, np.int64), integral=False))
+    assert sol.complete and sol.value == pytest.approx(full_lp(inst, cost), rel=1e-6)
+    assert sol.bound <= sol.value and sol.bound == pytest.approx(sol.value, rel=1e-5, abs=2e-6)
 
 
 def test_at_k2_the_point_duals_value_less_the_candidates_excess_is_the_lp():

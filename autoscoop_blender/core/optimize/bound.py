@@ -13,7 +13,10 @@ thousand candidates; its point duals price every candidate with one sparse produ
 ``reduced_c = cost_c - (M pi)_c``; the best candidate of each of the ``per_round``
 most promising positions joins (one per position: neighbouring orientations at one
 position are nearly the same column, and adding them all slows the LP down). An
-artificial column (cost 1 per point of the demand) keeps the restricted LP feasible.
+artificial column keeps the restricted LP feasible: it costs what the dearest
+candidate does per point of the demand (k_max times that with k > 1), so no optimum
+of the full LP leaves demand to it (the goal is at most what can be covered: a point
+short of its demand always has a candidate that raises it at no more than that).
 
 At every round the duals, scaled by ``t = min(1, min_c cost_c / (M pi)_c)``, are
 feasible for the dual of the full LP, so ``t z`` is a proven lower bound on it
@@ -245,10 +248,11 @@ def cover_lp(
     multi = inst.multi
     h = _new_highs(None)
     _cover_rows(h, n, inst.goal, need if multi else None)
-    # The artificial demand slack: k per point, so the restricted LP is always feasible.
+    # The artificial demand slack, so the restricted LP is always feasible: priced as
+    # the dearest candidate per point (with k > 1, k_max of them), never cheaper.
     h.addCols(
         1,
-        np.full(1, float(need.max()) if multi else 1.0),
+        np.full(1, float(np.max(cost, initial=0.0)) * (float(need.max()) if multi else 1.0)),
         np.zeros(1),
         np.full(1, highspy.kHighsInf),
         1,
