@@ -1,0 +1,560 @@
+"""The lp optimizer's own steps (``optimize/lp.py``) on hand-made candidate sets: the
+instance of what is left, the costs and bounds it hands on, the plans it rounds from
+an LP, the order it fixes them in and why it stops. Every expected value is worked
+out on paper from the rows in each test; the solvers run for real (HiGHS)."""
+
+import math
+from dataclasses import replace
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from autoscoop_blender.core.candidates import CandidateSet
+from autoscoop_blender.core.model.sensors import PAPER_CAMERA, SensorPose
+from autoscoop_blender.core.optimize import lp as lp_module
+from autoscoop_blender.core.optimize.base import FixedSensor, Solution, StopReason
+from autoscoop_blender.core.optimize.bound import LPSolution, SiteSolution
+from autoscoop_blender.core.optimize.cover import CoverInstance
+from autoscoop_blender.core.settings import OptimizeSettings
+from tests.core.test_lp import instance as rows_instance
+from tests.core.test_lp import steps
+
+
+class HandLP:
+    """What the lp optimizer reads of a Problem, on hand-made candidates: candidate c
+    stands at site ``site_of[c]`` (x = 10 m per site), looks at pitch 10, yaw 10 c
+    (its own orientation) and covers the points ``rows[c]``."""
+
+    def __init__(
+        self,
+        rows,
+        n_points,
+        site_of,
+        need=None,
+        goal=None,
+        standing=None,
+        sensor_costs=(1.0,),
+        model=None,
+        max_sensors=None,
+        **settings,
+    ):
+        n = len(rows)
+        site_of = np.asarray(site_of, dtype=np.int64)
+        n_sites = int(site_of.max()) + 1
+        self.rows = rows
+        self.need = np.ones(n_points, np.int32) if need is None else np.asarray(need, np.int32)
+        self.rho = 1.0
+        self.goal = n_points if goal is None else goal
+        self.n_targets = n_points
+        self.max_sensors = max_sensors or 2 * n
+        self.sensor_costs = np.asarray(sensor_costs, dtype=float)
+        model = np.zeros(n, np.int64) if model is None else np.asarray(model, np.int64)
+        angles = np.array([(10.0, 10.0 * c) for c in range(n)])
+        self.candidates = CandidateSet(
+            positions=np.array([(10.0 * s, 0.0) for s in range(n_sites)]),
+            angles=(angles,) * len(self.sensor_costs),
+            models=(PAPER_CAMERA,) * len(self.sensor_costs),
+            position=site_of,
+            orientation=np.arange(n, dtype=np.int64),
+            model=model,
+            matrix=rows_instance(rows, n_points, self.goal).matrix,
+        )
+        standing = np.zeros(n_sites, bool) if standing is None else np.asarray(standing)
+        self.space = SimpleNamespace(standing=standing, step=4.0)
+        self.grid = SimpleNamespace(target_xy=np.zeros((n_points, 2)), spacing=2.0)
+        self.settings = OptimizeSettings(optimizer="lp", **settings)
+
+    def reached(self, n_covered):
+        return n_covered >= self.goal
+
+    def pose(self, x, y, pitch, yaw, model=0):
+        return SensorPose(float(x), float(y), 6.0, 6.0, float(pitch), float(yaw))
+
+    def evaluate(self, pose, model=0):
+        points = self.rows[round(pose.yaw_deg / 10.0)]
+        return SimpleNamespace(covered=np.array(points, dtype=np.int64), rays=1)
+
+
+def solve(problem, solution=None):
+    """(the solution, the progress reports) of the lp optimizer on ``problem``."""
+    if solution is None:
+        solution = Solution(np.zeros(problem.n_targets, bool), need=problem.need)
+    return steps(lp_module.LPPlanner().solve(problem, solution))
+
+
+def poses_of(solution):
+    """The candidates fixed, by their yaw, in order."""
+    return [round(s.pose.yaw_deg / 10.0) for s in solution.sensors]
+
+
+# ---------------------------------------------------------------- what is left
+
+
+def test_the_instance_drops_covered_points_and_taken_candidates():
+    """Points 0..4 with k = 1, 2, 2, 1, 1; point 0 covered, points 0 and 2 seen once
+    already; candidate 0 taken. Left: points 1..4 needing 2, 1, 1, 1; point 1 is seen
+    by candidate 1 alone (candidate 0 no longer counts), point 4 by none: 2 coverable
+    of the 4 points left, so the goal is 2 (of 5 - 1)."""
+    rows = [[0, 1], [1, 2], [2, 3], [0]]
+    problem = HandLP(rows, 5, [0, 0, 1, 1], need=[1, 2, 2, 1, 1])
+    covered = np.array([True, False, False, False, False])
+    counts = np.array([1, 0, 1, 0, 0], np.int32)
+    inst = lp_module.instance(problem.candidates, problem, covered, counts, np.array([0]))
+    dense = inst.matrix.toarray()
+    assert dense.tolist() == [[0, 0, 0, 0], [1, 1, 0, 0], [0, 1, 1, 0], [0, 0, 0, 0]]
+    assert inst.k.tolist() == [2, 1, 1, 1] and inst.goal == 2
+    assert inst.site_of.tolist() == [0, 0, 1, 1] and inst.cap == 4
+    assert inst.xy.shape == (4, 2)
+    # Candidate 0 not taken: point 1 is seen twice, its k; 3 coverable.
+    free = lp_module.instance(problem.candidates, problem, covered, counts)
+    assert free.matrix.toarray()[0].tolist() == [1, 0, 0, 0] and free.goal == 3
+    assert lp_module.instance(problem.candidates, problem, covered, counts, np.zeros(0)).goal == 3
+
+
+def test_the_instance_of_a_fresh_start_and_points_already_at_their_k():
+    """Nothing covered: every column stays, the goal is the problem's (4 of the 5
+    points, all coverable but point 4). A point not marked covered whose counts reach
+    its k still needs one candidate (k clipped to 1)."""
+    rows = [[0, 1], [1, 2], [2, 3], [0]]
+    problem = HandLP(rows, 5, [0, 0, 1, 1], need=[1, 2, 2, 1, 1], goal=4)
+    none = np.zeros(5, bool)
+    inst = lp_module.instance(problem.candidates, problem, none)
+    assert inst.matrix.shape == (4, 5) and inst.matrix.nnz == 7
+    assert inst.k.tolist() == [1, 2, 2, 1, 1] and inst.goal == 4
+    # Points 1 and 2 seen twice already: k 1 each; now 4 points are coverable.
+    counts = np.array([0, 2, 2, 0, 0], np.int32)
+    at_k = lp_module.instance(problem.candidates, problem, none, counts)
+    assert at_k.k.tolist() == [1, 1, 1, 1, 1] and at_k.goal == 4
+    # The goal is what can be covered when that is less: point 1 needs 2, seen by 2.
+    short = HandLP(rows, 5, [0, 0, 1, 1], need=[1, 3, 1, 1, 1])
+    assert lp_module.instance(short.candidates, short, none).goal == 3
+
+
+def test_the_bound_scope_counts_positions_yaws_and_pitches():
+    """Three positions; the first model's angles hold 2 pitches and 3 yaws."""
+    problem = HandLP([[0], [0], [0]], 1, [0, 1, 2])
+    angles = np.array([(10.0, 0.0), (10.0, 90.0), (20.0, 0.0), (20.0, 90.0), (20.0, 180.0)])
+    cands = replace(problem.candidates, angles=(angles, np.zeros((1, 2))))
+    assert lp_module.bound_scope(cands, problem) == (
+        "plans on the candidate set: 3 mast positions on a 4 m lattice x 3 yaws x 2 "
+        "pitches; the 2 m target grid"
+    )
+
+
+# ---------------------------------------------------------------- costs
+
+
+def test_plan_cost_per_objective():
+    """Candidates at sites 0, 0, 1, 2; the plan 0, 1, 2 uses sites 0 and 1: 2 masts,
+    3 sensors; at a mast cost of 5 and sensor costs 1, 2, 4, 8 it costs 10 + 7."""
+    cands = HandLP([[0]] * 4, 1, [0, 0, 1, 2]).candidates
+    plan = [0, 1, 2]
+    assert lp_module.plan_cost(cands, plan, "sensors", 5.0, 2.0) == (3.0, 2)
+    assert lp_module.plan_cost(cands, plan, "masts", 5.0, 2.0) == (2 + 3e-6, 2)
+    assert lp_module.plan_cost(cands, plan, "cost", 5.0, 2.0) == (16.0, 2)
+    prices = np.array([1.0, 2.0, 4.0, 8.0])
+    assert lp_module.plan_cost(cands, plan, "cost", 5.0, prices) == (17.0, 2)
+    # A mast stands at site 0 already: one new mast.
+    standing = np.array([True, False, False])
+    assert lp_module.plan_cost(cands, plan, "cost", 5.0, prices, standing) == (12.0, 1)
+    assert lp_module.plan_cost(cands, plan, "masts", 5.0, 1.0, standing)[1] == 1
+    # Two sensors at site 0: above a cap of 1, within a cap of 2.
+    assert lp_module.plan_cost(cands, plan, "cost", 5.0, prices, standing, 1) == (math.inf, 1)
+    assert lp_module.plan_cost(cands, plan, "cost", 5.0, prices, None, 2) == (17.0, 2)
+    assert lp_module.plan_cost(cands, [], "cost", 5.0, prices, None, 1) == (0.0, 0)
+
+
+def test_plan_value_reads_the_settings():
+    """The plan 0, 1, 2 of sites 0, 0, 1: 2 masts at 3 (the default), sensors at 1.5;
+    with a mast standing at site 1, one; two models (1 and 4) priced per candidate;
+    a cap of 1 sensor per mast."""
+    rows = [[0]] * 3
+    plain = HandLP(rows, 1, [0, 0, 1], sensor_costs=(1.5,))
+    assert lp_module.plan_value(plain, plain.candidates, [0, 1, 2]) == 3 * 2 + 1.5 * 3
+    standing = HandLP(rows, 1, [0, 0, 1], standing=[False, True], sensor_costs=(1.5,))
+    assert lp_module.plan_value(standing, standing.candidates, [0, 1, 2]) == 3 + 4.5
+    mixed = HandLP(rows, 1, [0, 0, 1], sensor_costs=(1.0, 4.0), model=[0, 1, 1])
+    assert lp_module.plan_value(mixed, mixed.candidates, [0, 1, 2]) == 6 + 9
+    capped = HandLP(rows, 1, [0, 0, 1], max_sensors_per_mast=1, objective="sensors")
+    assert lp_module.plan_value(capped, capped.candidates, [0, 2]) == 2.0
+    assert lp_module.plan_value(capped, capped.candidates, [0, 1, 2]) == math.inf
+
+
+@pytest.mark.parametrize(
+    "objective, standing, mast, sensor",
+    [
+        ("sensors", None, 0.0, 1.0),
+        ("masts", None, 8.0, 1.0),  # one mast outweighs all 7 candidates
+        ("cost", None, 3.0, 2.0),
+        ("masts", [True, False], [0.0, 8.0], 1.0),
+        ("cost", [False, True], [3.0, 0.0], 2.0),
+        ("sensors", [False, True], 0.0, 1.0),
+    ],
+)
+def test_mast_aware_costs_per_objective(objective, standing, mast, sensor):
+    problem = HandLP(
+        [[0]] * 3, 1, [0, 0, 1], standing=standing, sensor_costs=(2.0,), objective=objective
+    )
+    got_mast, got_sensor = lp_module.mast_aware_costs(problem, problem.candidates, 7)
+    assert np.asarray(got_mast).tolist() == mast and got_sensor == sensor
+    assert np.ndim(got_mast) == np.ndim(mast)
+
+
+def test_mast_aware_costs_price_each_candidate_by_its_model():
+    problem = HandLP([[0]] * 3, 1, [0, 0, 1], sensor_costs=(1.0, 3.0), model=[0, 1, 1])
+    mast, sensor = lp_module.mast_aware_costs(problem, problem.candidates, 7)
+    assert mast == 3.0 and sensor.tolist() == [1.0, 3.0, 3.0]
+
+
+# ---------------------------------------------------------------- two solvers side by side
+
+
+def test_both_interleaves_two_generators_and_returns_both_values():
+    def gen(name, n, log):
+        try:
+            for k in range(n):
+                yield f"{name}{k}"
+            return name.upper()
+        finally:
+            log.append(name)
+
+    log = []
+    got, yielded = steps(lp_module._both(gen("a", 3, log), gen("b", 1, log)))
+    assert got == ("A", "B") and yielded == ["a0", "b0", "a1", "a2"]
+    assert log == ["b", "a"]  # each ended once, when it was done
+    got, yielded = steps(lp_module._both(gen("a", 0, []), gen("b", 2, [])))
+    assert got == ("A", "B") and yielded == ["b0", "b1"]
+    # Closed half way, both generators still running are closed.
+    log = []
+    both = lp_module._both(gen("a", 3, log), gen("b", 3, log))
+    assert [next(both), next(both)] == ["a0", "b0"]
+    both.close()
+    assert sorted(log) == ["a", "b"]
+    # One done already: only the other is closed (the done one ended by itself once).
+    log = []
+    both = lp_module._both(gen("a", 0, log), gen("b", 3, log))
+    assert next(both) == "b0" and log == ["a"]
+    both.close()
+    assert log == ["a", "b"]
+
+
+# ---------------------------------------------------------------- bounds handed on
+
+
+def _lp(bound, columns=(0,), x=(1.0,), reduced=None, rounds=3):
+    n = 4
+    return LPSolution(
+        value=bound,
+        bound=bound,
+        columns=np.asarray(columns, np.int64),
+        x=np.asarray(x, float),
+        priced=np.zeros(n),
+        reduced=np.ones(n) if reduced is None else np.asarray(reduced, float),
+        rounds=rounds,
+        complete=True,
+    )
+
+
+def test_plan_bound_with_one_price(monkeypatch):
+    """An LP bound of 2.2 proves 3 sensors; at a sensor cost of 2, 6 for the sensors;
+    the mast-aware bound gets the per-site mast costs and the one price."""
+    calls = []
+
+    def fake_bound(lp, position, mast, sensor, price=None):
+        calls.append((lp.bound, position.tolist(), np.asarray(mast).tolist(), sensor, price))
+        return 42.0
+
+    monkeypatch.setattr(lp_module, "mast_aware_bound", fake_bound)
+    problem = HandLP(
+        [[0]] * 4, 1, [0, 0, 1, 1], standing=[True, False], sensor_costs=(2.0,), mast_cost=5.0
+    )
+    sites = SiteSolution(2, np.array([0, 1]), np.zeros(0, np.int64))
+    got = lp_module._plan_bound(_lp(2.2), sites, problem.candidates, problem)
+    assert (got.sensors, got.masts, got.lp, got.rounds) == (3, 2, 2.2, 3)
+    assert got.cost_lp == 42.0 and got.sensor_cost_lp == 6.0
+    assert got.scope.startswith("plans on the candidate set: 2 mast positions")
+    assert calls == [(2.2, [0, 0, 1, 1], [0.0, 5.0], 2.0, None)]
+    # For the sensors objective the price is the settings' sensor_cost.
+    sensors = HandLP([[0]] * 4, 1, [0, 0, 1, 1], objective="sensors", sensor_cost=1.5)
+    got = lp_module._plan_bound(_lp(2.0), sites, sensors.candidates, sensors)
+    assert got.sensors == 2 and got.sensor_cost_lp == 3.0 and calls[-1][3] == 1.5
+
+
+def test_plan_bound_with_a_price_per_model(monkeypatch):
+    """Models at 1 and 2.5: an LP of sensor costs 7.5 (+ rounding noise) proves 3
+    sensors (none costs more than 2.5), and 7.5 for the sensors."""
+    calls = []
+    monkeypatch.setattr(
+        lp_module,
+        "mast_aware_bound",
+        lambda lp, position, mast, sensor, price=None: calls.append((sensor, price)) or 9.0,
+    )
+    problem = HandLP(
+        [[0]] * 4, 1, [0, 0, 1, 1], sensor_costs=(1.0, 2.5), model=[0, 1, 1, 0], mast_cost=5.0
+    )
+    sites = SiteSolution(1, np.array([0]), np.zeros(0, np.int64))
+    got = lp_module._plan_bound(_lp(7.5 + 1e-9), sites, problem.candidates, problem)
+    assert (got.sensors, got.masts, got.cost_lp) == (3, 1, 9.0)
+    assert got.sensor_cost_lp == pytest.approx(7.5) and got.lp == got.sensor_cost_lp
+    assert calls[0][0] == 1.0 and calls[0][1].tolist() == [1.0, 2.5, 2.5, 1.0]
+    assert lp_module._plan_bound(_lp(7.6), sites, problem.candidates, problem).sensors == 4
+    free = HandLP([[0]] * 2, 1, [0, 1], sensor_costs=(0.0, 0.0, 1.0), model=[0, 1])
+    assert lp_module._plan_bound(_lp(0.0), sites, free.candidates, free).sensors == 0
+
+
+# ---------------------------------------------------------------- plans from the LP
+
+
+def test_the_pool_is_the_lps_columns_and_the_nearly_as_good():
+    lp = _lp(1.0, columns=(3, 0), x=(1.0, 0.5), reduced=(0.5, 0.2, 0.25, 0.9))
+    assert lp_module._pool(lp).tolist() == [0, 1, 3]
+
+
+def test_plans_are_rounded_from_the_lp_at_each_threshold_and_stay_in_the_pool():
+    """Points 0..3; candidate 0 covers 0, 1; 1 covers 2; 2 covers 2, 3; 3 covers all
+    but is out of the pool (not a column, reduced cost 1). At LP values 1, 0.6 and
+    0.25 each threshold keeps 0 (and 1, 2 below 0.6 and 0.25), completes with 2 and
+    prunes 1: five plans of 0 and 2, never 3."""
+    inst = rows_instance([[0, 1], [2], [2, 3], [0, 1, 2, 3]], 4, 4)
+    lp = _lp(2.0, columns=(0, 1, 2), x=(1.0, 0.6, 0.25), reduced=(0.0, 0.0, 0.0, 1.0))
+    plans = list(lp_module._lp_plans(inst, lp))
+    assert [sorted(p) for p in plans] == [[0, 2]] * 5
+    # Without candidate 2 in the pool no plan reaches the goal: none is given.
+    lp = _lp(2.0, columns=(0, 1), x=(1.0, 0.6), reduced=(0.0, 0.0, 1.0, 1.0))
+    assert list(lp_module._lp_plans(inst, lp)) == []
+
+
+def test_plans_from_the_lp_are_completed_per_cost():
+    """Point 0 alone is left; candidate 1 (cost 1) and 2 (cost 5) cover it, both in
+    the pool; per cost the plan takes 1, per point the first, 1 as well; at costs
+    5, 1 it takes 2."""
+    inst = rows_instance([[1], [0], [0]], 2, 2)
+    lp = _lp(2.0, columns=(0,), x=(1.0,), reduced=(0.0, 0.0, 0.0, 1.0))
+    cheap = list(lp_module._lp_plans(inst, lp, np.array([1.0, 1.0, 5.0])))
+    assert [sorted(p) for p in cheap] == [[0, 1]] * 5
+    dear = list(lp_module._lp_plans(inst, lp, np.array([1.0, 5.0, 1.0])))
+    assert [sorted(p) for p in dear] == [[0, 2]] * 5
+
+
+def test_the_plan_is_fixed_in_greedy_order():
+    """k = 1: 1 (3 points) first, then 0 (point 3), then 2 (nothing new); of 0 and
+    2 alone, 2 (2 points) first. k = 2: after 1, candidate 2 raises points 0 and 1
+    to their k, 0 only point 3."""
+    rows = [[3], [0, 1, 2], [0, 1]]
+    inst = rows_instance(rows, 4, 4)
+    assert lp_module.in_gain_order(inst, [0, 1, 2]) == [1, 0, 2]
+    assert lp_module.in_gain_order(inst, [0, 2]) == [2, 0]
+    k2 = CoverInstance(inst.matrix, 4, need=np.full(4, 2, np.int32))
+    assert lp_module.in_gain_order(k2, [0, 1, 2]) == [1, 2, 0]
+    assert lp_module.in_gain_order(k2, []) == []
+
+
+# ---------------------------------------------------------------- the solves
+
+# Points 0..6. Greedy takes 0 (4 points), then 1 (4, 6), then 2 (5): 3 sensors on 3
+# masts; 1 and 2 alone cover all (points 4 and 6 only 1 sees, 5 only 2): the LP is 2.
+GREEDY_TRAP = [[0, 1, 2, 3], [0, 1, 4, 6], [2, 3, 5]]
+
+
+def test_the_fewest_masts_then_a_plan_on_them():
+    """Site 0 holds 0 (points 0, 1), 1 (2, 3) and 2 (4, 5); site 1 holds 3 (4, 5).
+    Site 0 alone covers all: one mast, and the plan on it is 0, 1, 2."""
+    rows = [[0, 1], [2, 3], [4, 5], [4, 5]]
+    problem = HandLP(rows, 6, [0, 0, 0, 1], objective="sensors")
+    inst = lp_module.instance(problem.candidates, problem, np.zeros(6, bool))
+    go = lp_module.masts_then_plan
+    sites, plan = steps(go(problem, problem.candidates, inst, None, None, True))[0]
+    assert sites.bound == 1 and sites.sites.tolist() == [0] and sites.lp_sites.tolist() == [0]
+    assert sorted(plan) == [0, 1, 2]
+    sites, plan = steps(go(problem, problem.candidates, inst, None, None, False))[0]
+    assert sites.bound == 1 and plan is None
+    # Asked to stop (here before it starts): no plan on the sites.
+    stop = lp_module.threading.Event()
+    stop.set()
+    assert steps(go(problem, problem.candidates, inst, None, stop, True))[0][1] is None
+    # Only the LP over sites: no set of sites of its own, the plan on the LP's.
+    sites, plan = steps(go(problem, problem.candidates, inst, None, None, True, False))[0]
+    assert sites.sites.tolist() == [] and sites.bound == 1 and sorted(plan) == [0, 1, 2]
+
+
+def test_a_full_mast_takes_the_rest_from_another_site():
+    """As above with at most 2 sensors a mast: site 0 cannot hold all three, so point
+    4, 5 goes to candidate 3 on site 1 (0 and 1 are the only ones that see 0..3)."""
+    rows = [[0, 1], [2, 3], [4, 5], [4, 5]]
+    for objective in ("sensors", "cost", "masts"):
+        problem = HandLP(rows, 6, [0, 0, 0, 1], objective=objective, max_sensors_per_mast=2)
+        inst = lp_module.instance(problem.candidates, problem, np.zeros(6, bool))
+        go = lp_module.masts_then_plan(problem, problem.candidates, inst, None, None, True)
+        sites, plan = steps(go)[0]
+        assert sites.bound == 1 and sorted(plan) == [0, 1, 3]
+    # One site with a cap of 1 and two candidates needed: no plan at all.
+    problem = HandLP([[0], [1]], 2, [0, 0], max_sensors_per_mast=1)
+    inst = lp_module.instance(problem.candidates, problem, np.zeros(2, bool))
+    go = lp_module.masts_then_plan(problem, problem.candidates, inst, None, None, True)
+    sites, plan = steps(go)[0]
+    assert sites.bound == 1 and plan is None
+
+
+def _bound_run(problem, plan=False):
+    """(bound, lp, plan on the fewest masts, greedy cover), the progress reports."""
+    inst = lp_module.instance(problem.candidates, problem, np.zeros(problem.n_targets, bool))
+    solution = Solution(np.zeros(problem.n_targets, bool))
+    go = lp_module.prove_bound(problem, problem.candidates, inst, solution, None, plan=plan)
+    return steps(go)
+
+
+def test_prove_bound_reports_the_greedy_plan_and_the_lp_as_it_rises():
+    """GREEDY_TRAP on three sites: greedy's 3 sensors (at 3 a mast, 1 a sensor: 12)
+    against an LP of 2 sensors and 2 masts."""
+    problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="sensors")
+    (bound, lp, on_sites, greedy), reports = _bound_run(problem)
+    assert sorted(greedy.chosen) == [0, 1, 2] and on_sites is None
+    assert (bound.sensors, bound.masts, bound.lp) == (2, 2, pytest.approx(2.0, abs=1e-4))
+    assert lp.complete and {r.best for r in reports} == {3.0}
+    assert {r.phase for r in reports} == {"search"}
+    proven = [r.bound for r in reports if r.bound is not None]
+    assert max(proven) == pytest.approx(2.0, abs=1e-4) and reports[-1].bound == max(proven)
+    assert proven == sorted(proven)  # it only rises
+    # The same for cost, at 2 a sensor: the LP proves 4 as soon as it is solved.
+    cost = HandLP(GREEDY_TRAP, 7, [0, 1, 2], sensor_costs=(2.0,))
+    (bound, *_), reports = _bound_run(cost)
+    assert {r.best for r in reports} == {3 * 3 + 2 * 3}
+    assert max(r.bound for r in reports if r.bound is not None) == pytest.approx(4.0, abs=1e-4)
+    # For masts the LP proves nothing on the way.
+    masts = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="masts")
+    (bound, *_), reports = _bound_run(masts)
+    assert bound.masts == 2 and {r.bound for r in reports} == {None}
+    assert {r.best for r in reports} == {3 + 3e-6}
+
+
+def test_prove_bound_with_models_of_different_costs():
+    """Candidate 2 of model 1 costs 3: the LP prices it (1 + 3 = 4 for the plan of 1
+    and 2), and the count follows through the dearest model: 4 / 3 -> 2."""
+    problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], sensor_costs=(1.0, 3.0), model=[0, 0, 1])
+    (bound, lp, *_), reports = _bound_run(problem)
+    assert lp.complete and lp.value == pytest.approx(4.0)
+    assert bound.sensor_cost_lp == pytest.approx(4.0, abs=1e-4) and bound.sensors == 2
+    assert max(r.bound for r in reports if r.bound is not None) == pytest.approx(4.0, abs=1e-4)
+    # Greedy per cost: 0 (4 points for 1), then 1 (2 for 1), then 2: 3 x 3 + 5.
+    assert {r.best for r in reports} == {14.0}
+
+
+def test_prove_bound_splits_a_large_target_and_runs_the_masts_lp_alone(monkeypatch):
+    """With parts of at most 4 points, the 7 points are solved in 2 parts; the fewest
+    masts then get their LP alone unless the masts are the objective."""
+    monkeypatch.setattr(lp_module, "PART_POINTS", 4)
+    milps = []
+    site_cover = lp_module.site_cover
+
+    def spy(inst, site_of, n_sites, deadline, stop, milp, standing):
+        milps.append(milp)
+        return (yield from site_cover(inst, site_of, n_sites, deadline, stop, milp, standing))
+
+    monkeypatch.setattr(lp_module, "site_cover", spy)
+    for objective in ("sensors", "masts"):
+        problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective=objective)
+        problem.grid.target_xy = np.array([(float(n), 0.0) for n in range(7)])
+        (bound, lp, *_), _ = _bound_run(problem)
+        assert lp.parts == 2 and bound.sensors == 2 and bound.masts == 2
+    assert milps == [False, True]
+    problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="sensors")
+    problem.grid.target_xy = np.zeros((7, 2))
+    monkeypatch.setattr(lp_module, "PART_POINTS", 7)
+    (bound, lp, *_), _ = _bound_run(problem)
+    assert lp.parts == 1 and milps[-1] is True
+
+
+def test_prove_and_plan_beats_greedy_and_reports_it():
+    problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="sensors")
+    inst = lp_module.instance(problem.candidates, problem, np.zeros(7, bool))
+    solution = Solution(np.zeros(7, bool))
+    go = lp_module.prove_and_plan(problem, problem.candidates, inst, solution, None)
+    (plan, bound), reports = steps(go)
+    assert sorted(plan) == [1, 2] and bound.sensors == 2
+    # After the bounds: the plan on the fewest masts is already 2; then 5 LP plans.
+    after = [r for r in reports if r.bound == 2.0 and r.best == 2.0]
+    assert len(after) == 1 + 5 and reports[-6:] == after
+
+
+def _fixed(problem, c, existing=False, seen=True):
+    """Candidate ``c`` of ``problem`` as a sensor: what it sees, all new."""
+    cands = problem.candidates
+    x, y = cands.positions[cands.position[c]]
+    pose = problem.pose(x, y, 10.0, 10.0 * c)
+    points = np.array(problem.rows[c], np.int64)
+    return FixedSensor(pose, 0.0, 0, 0, points, points if seen else None, existing=existing)
+
+
+def test_the_lp_optimizer_fixes_its_plan_in_greedy_order():
+    problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="sensors")
+    res, reports = solve(problem)
+    assert poses_of(res) == [1, 2]  # 1 sees 4 points, 2 then 3
+    assert res.stop_reason == StopReason.reached(1.0) and res.n_covered == 7
+    assert res.bound.sensors == 2 and res.bound.masts == 2
+    fixed = [r for r in reports if r.phase == "fixed"]
+    assert [r.sensors for r in fixed] == [1, 2] and fixed[0].fixed is res.sensors[0]
+
+
+def test_the_lp_optimizer_goes_on_from_a_resumed_run():
+    """Candidate 0 fixed already: points 4, 5, 6 are left, which 1 and 2 cover."""
+    problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="sensors")
+    start = Solution(np.zeros(7, bool), need=problem.need)
+    start.fix(_fixed(problem, 0))
+    res, _ = solve(problem, start)
+    assert poses_of(res) == [0, 1, 2] and res.n_covered == 7
+    assert res.bound.sensors == 2
+
+
+@pytest.mark.parametrize(
+    "rows, goal, why",
+    [
+        (GREEDY_TRAP, 0, StopReason.reached(1.0)),  # nothing to do
+        ([[], [], []], 7, StopReason.out_of_sight("candidate pose")),  # nothing seen
+    ],
+)
+def test_the_lp_optimizer_with_nothing_to_plan(rows, goal, why):
+    problem = HandLP(rows, 7, [0, 1, 2], goal=goal)
+    res, reports = solve(problem)
+    assert res.stop_reason == why and res.sensors == [] and res.bound is None
+    assert reports == []
+
+
+def test_the_lp_optimizer_stops_at_the_sensor_limit_and_short_of_sight():
+    capped = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="sensors", max_sensors=1)
+    res, _ = solve(capped)
+    assert poses_of(res) == [1] and res.stop_reason == StopReason.sensor_limit(1)
+    # Point 7 is seen by none: the plan covers the 7 others and says why it stops.
+    blind = HandLP(GREEDY_TRAP, 8, [0, 1, 2], objective="sensors")
+    res, _ = solve(blind)
+    assert poses_of(res) == [1, 2] and res.n_covered == 7
+    assert res.stop_reason == StopReason.out_of_sight("candidate pose")
+
+
+def test_the_lp_optimizer_stopped_early_still_places_a_plan():
+    """Stopped before it starts (Esc) or past its time limit: the best plan found by
+    then (the LP's start, greedy's 3 sensors, improved to 2) and the words for an
+    early stop."""
+    problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="sensors")
+    planner = lp_module.LPPlanner()
+    planner.stop_early()
+    res = steps(planner.solve(problem, Solution(np.zeros(7, bool))))[0]
+    assert res.stop_reason == StopReason.reached(1.0, early=True) and res.n_covered == 7
+    assert len(res.sensors) == 2 and res.bound.sensors <= 2
+    late = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="sensors", time_limit_s=1e-9)
+    res, _ = solve(late)
+    assert res.stop_reason == StopReason.reached(1.0, early=True)
+    assert planner.close() is None
+
+
+@pytest.mark.parametrize(
+    "existing, seen, sensors", [(True, True, 1), (True, False, 1), (False, True, 2)]
+)
+def test_the_bound_for_another_plan_leaves_out_what_stands(existing, seen, sensors):
+    """Candidate 1 standing already (existing) leaves points 2, 3, 5: candidate 2
+    alone. A sensor the plan placed itself counts for nothing: 2, as for the whole."""
+    problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="sensors")
+    solution = Solution(np.zeros(7, bool), need=problem.need)
+    solution.fix(_fixed(problem, 1, existing, seen))
+    bound = steps(lp_module.bound_only(problem, solution))[0]
+    assert bound.sensors == sensors
