@@ -3,7 +3,10 @@ instance of what is left, the costs and bounds it hands on, the plans it rounds 
 an LP, the order it fixes them in and why it stops. Every expected value is worked
 out on paper from the rows in each test; the solvers run for real (HiGHS)."""
 
+import inspect
 import math
+import threading
+import time
 from dataclasses import replace
 from types import SimpleNamespace
 
@@ -558,3 +561,320 @@ def test_the_bound_for_another_plan_leaves_out_what_stands(existing, seen, senso
     solution.fix(_fixed(problem, 1, existing, seen))
     bound = steps(lp_module.bound_only(problem, solution))[0]
     assert bound.sensors == sensors
+
+
+# ---------------------------------------------------------------- what each solve is handed
+
+
+def spy(monkeypatch, *names):
+    """Wrap lp.py's ``names`` (functions it calls): each call's arguments by name, the
+    defaults filled in, and under "returned" what it returned, listed per name."""
+    calls = {name: [] for name in names}
+    for name in names:
+        real = getattr(lp_module, name)
+
+        def wrapper(*args, _real=real, _name=name, **kwargs):
+            bound = inspect.signature(_real).bind(*args, **kwargs)
+            bound.apply_defaults()
+            call = dict(bound.arguments)
+            calls[_name].append(call)
+            call["returned"] = _real(*args, **kwargs)
+            return call["returned"]
+
+        monkeypatch.setattr(lp_module, name, wrapper)
+    return calls
+
+
+def test_the_deadline_and_the_stop_reach_every_solve(monkeypatch):
+    """GREEDY_TRAP, a mast standing at site 1: the LP starts from greedy's columns,
+    one column per position; the fewest masts get the standing mast; the mast-aware
+    MILP the plan's sites, its start and its candidates; all the deadline and the
+    stop; the plans from the LP are completed at each candidate's price."""
+    problem = HandLP(
+        GREEDY_TRAP, 7, [0, 1, 2], standing=[False, True, False], sensor_costs=(1.0, 2.0),
+        model=[0, 1, 0],
+    )  # fmt: skip
+    calls = spy(
+        monkeypatch, "cover_lp", "split_cover_lp", "site_cover", "milp_candidates",
+        "sensors_on_sites", "_lp_plans",
+    )  # fmt: skip
+    cands = problem.candidates
+    inst = lp_module.instance(cands, problem, np.zeros(7, bool))
+    deadline, stop = time.perf_counter() + 100.0, threading.Event()
+    go = lp_module.prove_and_plan(problem, cands, inst, Solution(np.zeros(7, bool)), deadline, stop)
+    plan, _ = steps(go)[0]
+    assert sorted(plan) == [1, 2] and calls["split_cover_lp"] == []
+    (lp,) = calls["cover_lp"]
+    assert lp["inst"] is inst and lp["group"] is cands.position
+    assert lp["cost"].tolist() == [1.0, 2.0, 1.0]
+    assert sorted(lp["initial"].tolist()) == [0, 1, 2]  # greedy took all three
+    (sites,) = calls["site_cover"]
+    assert sites["standing"].tolist() == [False, True, False] and sites["n_sites"] == 3
+    assert sites["site_of"] is cands.position and sites["milp"] is True
+    (cols,) = calls["milp_candidates"]
+    (milp,) = calls["sensors_on_sites"]
+    assert cols["inst"] is inst and cols["site_of"] is cands.position
+    assert milp["sites"] is cols["used"] and milp["start"] is cols["start"]
+    assert milp["cols"] is cols["returned"] and milp["inst"] is inst
+    assert sorted(milp["start"]) == [1, 2] and milp["sites"].tolist() == [1, 2]
+    assert milp["mast_cost"].tolist() == [3.0, 0.0, 3.0]
+    assert milp["sensor_cost"].tolist() == [1.0, 2.0, 1.0]
+    for call in (lp, sites, milp):
+        assert call["deadline"] == deadline and call["stop"] is stop
+    (plans,) = calls["_lp_plans"]
+    assert plans["price"].tolist() == [1.0, 2.0, 1.0]
+
+
+def test_the_lp_in_parts_is_handed_the_deadline_and_the_stop(monkeypatch):
+    monkeypatch.setattr(lp_module, "PART_POINTS", 4)
+    calls = spy(monkeypatch, "cover_lp", "split_cover_lp")
+    problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="sensors")
+    problem.grid.target_xy = np.array([(float(n), 0.0) for n in range(7)])
+    inst = lp_module.instance(problem.candidates, problem, np.zeros(7, bool))
+    deadline, stop = time.perf_counter() + 100.0, threading.Event()
+    go = lp_module.prove_bound(problem, problem.candidates, inst, Solution(np.zeros(7, bool)),
+                               deadline, stop)  # fmt: skip
+    steps(go)
+    (split,) = calls["split_cover_lp"]
+    assert split["deadline"] == deadline and split["stop"] is stop
+    assert sorted(split["initial"].tolist()) == [0, 1, 2]
+    assert split["part"].tolist() == [0, 0, 0, 0, 1, 1, 1]
+    assert split["group"] is problem.candidates.position
+    # The parts' own LPs are the split's business: none solved whole here.
+    assert all(call["rel_gap"] > 0 for call in calls["cover_lp"])
+
+
+def test_prices_follow_the_objective(monkeypatch):
+    """Models at 1 and 3 (candidate 2 the dear one): for the sensors objective every
+    candidate counts 1 in greedy, the LP and the LP's plans (the bound counts 2
+    sensors, not 4 of cost); for cost each its model's price."""
+    calls = spy(monkeypatch, "cover_lp", "_lp_plans")
+    for objective, price in (("sensors", [1.0, 1.0, 1.0]), ("cost", [1.0, 1.0, 3.0])):
+        problem = HandLP(
+            GREEDY_TRAP, 7, [0, 1, 2], sensor_costs=(1.0, 3.0), model=[0, 0, 1],
+            objective=objective,
+        )  # fmt: skip
+        inst = lp_module.instance(problem.candidates, problem, np.zeros(7, bool))
+        go = lp_module.prove_and_plan(
+            problem, problem.candidates, inst, Solution(np.zeros(7, bool)), None
+        )
+        _, bound = steps(go)[0]
+        assert calls["cover_lp"][-1]["cost"].tolist() == price
+        assert np.asarray(calls["_lp_plans"][-1]["price"]).tolist() == (
+            1.0 if objective == "sensors" else price
+        )
+        assert bound.sensors == 2
+    assert bound.lp == pytest.approx(4.0, abs=1e-4)
+
+
+def test_greedy_goes_by_cost():
+    """Candidate 0 of model 1 costs 3: per cost greedy takes 1 (4 points for 1), then
+    2 (3 for 1): 2 masts at 3 and 2 sensors, 8; per point it would take 0 first and
+    end with three (14)."""
+    problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], sensor_costs=(1.0, 3.0), model=[1, 0, 0])
+    (bound, lp, on_sites, greedy), reports = _bound_run(problem)
+    assert sorted(greedy.chosen) == [1, 2] and {r.best for r in reports} == {8.0}
+    assert {r.rho for r in reports} == {1.0}
+
+
+def _fake_sites(monkeypatch, sites, lp_sites, bound=2):
+    """The fewest masts as given (their MILP's ``sites``, its LP's ``lp_sites``)."""
+
+    def site_cover(*args, **kwargs):
+        return SiteSolution(bound, np.array(sites, np.int64), np.array(lp_sites, np.int64))
+        yield  # a generator, like the real one
+
+    monkeypatch.setattr(lp_module, "site_cover", site_cover)
+
+
+# Sites 0, 1, 2 around points 0..2: site 0 holds 0 (point 0) and 1 (point 1); site 1
+# holds 2 (point 1) and 3 (point 2); site 2 holds 4 (points 0 and 2). On sites 0, 1
+# a plan needs 3 sensors; with site 2 too, 2 (candidate 4 and 1 or 2).
+TRIANGLE = [[0], [1], [1], [2], [0, 2]]
+TRIANGLE_SITES = [0, 0, 1, 1, 2]
+
+
+def test_the_plan_on_the_lps_sites_wins_when_it_is_cheaper(monkeypatch):
+    problem = HandLP(TRIANGLE, 3, TRIANGLE_SITES, objective="sensors")
+    inst = lp_module.instance(problem.candidates, problem, np.zeros(3, bool))
+    calls = spy(monkeypatch, "close_sites")
+    _fake_sites(monkeypatch, [0, 1], [0, 1, 2])
+    go = lp_module.masts_then_plan(problem, problem.candidates, inst, None, None, True)
+    sites, plan = steps(go)[0]
+    assert len(plan) == 2 and 4 in plan and len(calls["close_sites"]) == 2
+    # The same sites twice: one plan on them.
+    _fake_sites(monkeypatch, [0, 1], [0, 1])
+    go = lp_module.masts_then_plan(problem, problem.candidates, inst, None, None, True)
+    sites, plan = steps(go)[0]
+    assert sorted(plan) == [0, 1, 3] or sorted(plan) == [0, 2, 3]
+    assert len(calls["close_sites"]) == 3
+
+
+def test_the_plan_on_the_sites_is_built_per_cost(monkeypatch):
+    """Cost objective, masts at 3, models at 1 and 2 (candidate 4 of model 1): the
+    greedy start, its improvement and the masts closed all get the per-site mast
+    cost and each candidate's price; a mast stands at site 2 already."""
+    problem = HandLP(
+        TRIANGLE, 3, TRIANGLE_SITES, sensor_costs=(1.0, 2.0), model=[0, 0, 0, 0, 1],
+        standing=[False, False, True],
+    )  # fmt: skip
+    inst = lp_module.instance(problem.candidates, problem, np.zeros(3, bool))
+    calls = spy(monkeypatch, "complete", "improve", "close_sites")
+    _fake_sites(monkeypatch, [0, 1], [0, 1, 2])
+    go = lp_module.masts_then_plan(problem, problem.candidates, inst, None, None, True)
+    _, plan = steps(go)[0]
+    assert sorted(plan) in ([1, 4], [2, 4])  # 2 on the standing mast + 1 + 3: 6
+    price = [1.0, 1.0, 1.0, 1.0, 2.0]
+    for call in calls["complete"] + calls["close_sites"]:
+        assert call["site_of"] is problem.candidates.position
+        assert call["mast_cost"].tolist() == [3.0, 3.0, 0.0]
+        assert call["sensor_cost"].tolist() == price
+    for call in calls["improve"]:
+        assert call["sensor_cost"].tolist() == price
+    assert [c["pool"].tolist() for c in calls["complete"]] == [[0, 1, 2, 3], [0, 1, 2, 3, 4]]
+
+
+def test_the_plan_stays_on_the_fewest_masts_sites():
+    """Site 0 alone covers all with 0, 1, 2; candidate 3 on site 1 sees 4 points, so
+    a plan from every site would take 3 and 2 (2 sensors on 2 masts): for the masts
+    the plan stays on site 0."""
+    rows = [[0, 1], [2, 3], [4, 5], [0, 1, 2, 3]]
+    problem = HandLP(rows, 6, [0, 0, 0, 1], objective="sensors")
+    inst = lp_module.instance(problem.candidates, problem, np.zeros(6, bool))
+    go = lp_module.masts_then_plan(problem, problem.candidates, inst, None, None, True)
+    sites, plan = steps(go)[0]
+    assert sites.sites.tolist() == [0] and sorted(plan) == [0, 1, 2]
+
+
+# ---------------------------------------------------------------- more hand cases
+
+
+def test_the_instance_keeps_its_types_and_takes_the_covered_off_the_goal():
+    """Candidates 0..3 each see points; point 0 covered: a goal of 3 becomes 2 (all 4
+    left are coverable). The matrix stays float32 and the k int32."""
+    rows = [[0, 1], [1, 2], [2, 3], [3, 4]]
+    problem = HandLP(rows, 5, [0, 0, 1, 1], goal=3)
+    covered = np.array([True, False, False, False, False])
+    inst = lp_module.instance(problem.candidates, problem, covered, taken=np.array([3]))
+    assert inst.goal == 2 and inst.matrix.dtype == np.float32 and inst.k.dtype == np.int32
+
+
+def test_plan_cost_counts_only_the_masts_not_standing():
+    cands = HandLP([[0]] * 4, 1, [0, 0, 1, 2]).candidates
+    standing = np.array([True, True, False])
+    assert lp_module.plan_cost(cands, [0, 1, 2], "cost", 5.0, 1.0, standing) == (3.0, 0)
+
+
+def test_plan_bound_through_cheap_or_priced_models(monkeypatch):
+    """Models at 0.5 and 0.25: an LP of 1 proves 2 sensors (none costs more than
+    0.5); an LP of 0 proves none; the scope and rounds are the LP's."""
+    monkeypatch.setattr(lp_module, "mast_aware_bound", lambda *args: 0.0)
+    problem = HandLP([[0]] * 2, 1, [0, 1], sensor_costs=(0.5, 0.25), model=[0, 1])
+    sites = SiteSolution(1, np.array([0]), np.zeros(0, np.int64))
+    got = lp_module._plan_bound(_lp(1.0, rounds=5), sites, problem.candidates, problem)
+    assert got.sensors == 2 and got.rounds == 5
+    assert got.scope == lp_module.bound_scope(problem.candidates, problem)
+    assert lp_module._plan_bound(_lp(0.0), sites, problem.candidates, problem).sensors == 0
+
+
+def test_plans_keep_what_the_lp_holds_at_each_threshold():
+    """The 4-cycle: 0 = {0, 1}, 1 = {1, 2}, 2 = {2, 3}, 3 = {3, 0}, all at just under
+    0.5 (within 1e-9): at 0.9 and 0.7 nothing is kept and greedy takes 0 and 2; at
+    0.5, 0.3 and 0.2 all four are, and pruning in order drops 0 (its points covered
+    by 1 and 3), keeps 1, drops 2: 1 and 3."""
+    inst = rows_instance([[0, 1], [1, 2], [2, 3], [3, 0]], 4, 4)
+    half = 0.5 - 1e-9
+    lp = _lp(2.0, columns=(0, 1, 2, 3), x=(half,) * 4, reduced=(0.0,) * 4)
+    plans = [sorted(p) for p in lp_module._lp_plans(inst, lp)]
+    assert plans == [[0, 2], [0, 2], [1, 3], [1, 3], [1, 3]]
+
+
+def test_plans_from_the_lp_are_improved_per_cost():
+    """The LP keeps 0 = {0} and 1 = {1}; 2 = {0, 1} is in the pool at a price of 3: a
+    swap of the two for it would cost more (3 > 2), so the plan stays 0, 1; at one
+    price for all it would be 2 alone."""
+    inst = rows_instance([[0], [1], [0, 1]], 2, 2)
+    lp = _lp(2.0, columns=(0, 1), x=(1.0, 1.0), reduced=(0.0, 0.0, 0.0, 1.0))
+    priced = list(lp_module._lp_plans(inst, lp, np.array([1.0, 1.0, 3.0])))
+    assert [sorted(p) for p in priced] == [[0, 1]] * 5
+    assert list(lp_module._lp_plans(inst, lp)) == [[2]] * 5
+
+
+def test_greedy_order_counts_each_sensor_at_k2():
+    """k = 2: 0 (3 points) first, then 1 (points 0, 1 to 2; 3 ties with it and comes
+    later), then 3 (points 2, 3) before 2, which adds nothing once 0 and 1 are at 2."""
+    inst = rows_instance([[0, 1, 2], [0, 1], [0, 1], [2, 3]], 4, 4)
+    k2 = CoverInstance(inst.matrix, 4, need=np.full(4, 2, np.int32))
+    assert lp_module.in_gain_order(k2, [0, 1, 2, 3]) == [0, 1, 3, 2]
+
+
+def test_the_lp_optimizer_resumed_at_k2_takes_no_sensor_twice():
+    """Points 0, 1 needed twice; 0, 1 and 2 each see both. Candidate 0 is fixed: one
+    more is needed, not candidate 0 again."""
+    problem = HandLP([[0, 1]] * 3, 2, [0, 1, 2], need=[2, 2], objective="sensors")
+    start = Solution(np.zeros(2, bool), need=problem.need)
+    start.fix(FixedSensor(_fixed(problem, 0).pose, 0.0, 0, 0, np.zeros(0, np.int64),
+                          np.array([0, 1])))  # fmt: skip
+    res, _ = solve(problem, start)
+    assert poses_of(res) == [0, 1] and res.n_covered == 2 and res.bound.sensors == 1
+
+
+def test_the_lp_optimizer_with_one_point_left():
+    problem = HandLP([[0], [0, 1]], 2, [0, 1], goal=1, objective="sensors")
+    res, _ = solve(problem)
+    assert poses_of(res) == [1] and res.stop_reason == StopReason.reached(1.0)
+
+
+class SeesMore(HandLP):
+    """Candidate 1 evaluated afresh sees every point, more than its row."""
+
+    def evaluate(self, pose, model=0):
+        if round(pose.yaw_deg / 10.0) == 1:
+            return SimpleNamespace(covered=np.arange(self.n_targets), rays=1)
+        return super().evaluate(pose, model)
+
+
+def test_the_lp_optimizer_stops_fixing_at_the_goal():
+    problem = SeesMore(GREEDY_TRAP, 7, [0, 1, 2], objective="sensors")
+    res, reports = solve(problem)
+    assert poses_of(res) == [1] and res.stop_reason == StopReason.reached(1.0)
+    assert [(r.phase, r.rho) for r in reports if r.fixed] == [("fixed", 1.0)]
+
+
+def test_the_lp_optimizer_hands_on_its_deadline_and_stop(monkeypatch):
+    calls = spy(monkeypatch, "prove_and_plan")
+    problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="sensors", time_limit_s=100.0)
+    planner = lp_module.LPPlanner()
+    t0 = time.perf_counter()
+    res = steps(planner.solve(problem, Solution(np.zeros(7, bool))))[0]
+    (call,) = calls["prove_and_plan"]
+    assert t0 + 100.0 <= call["deadline"] <= time.perf_counter() + 100.0
+    assert call["stop"] is planner.stop
+    assert res.stop_reason == StopReason.reached(1.0)  # well within its time
+
+
+@pytest.mark.parametrize("limit", [None, 100.0])
+def test_the_bound_for_another_plan_has_the_time_limit(monkeypatch, limit):
+    calls = spy(monkeypatch, "prove_bound")
+    problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="sensors", time_limit_s=limit)
+    t0 = time.perf_counter()
+    steps(lp_module.bound_only(problem, Solution(np.zeros(7, bool))))
+    deadline = calls["prove_bound"][0]["deadline"]
+    if limit is None:
+        assert deadline is None
+    else:
+        assert t0 + limit <= deadline <= time.perf_counter() + limit
+
+
+@pytest.mark.parametrize("standing, bound", [(1, 1), (2, 0), (0, 2)])
+def test_the_bound_for_another_plan_at_k2_counts_each_standing_sensor(standing, bound):
+    """Points 0, 1 needed twice; 0, 1 and 2 each see both. With one sensor standing
+    already (its points in ``seen``, none newly at k) 1 more is needed; with two, none;
+    with none, 2."""
+    problem = HandLP([[0, 1]] * 3, 2, [0, 1, 2], need=[2, 2], objective="sensors")
+    solution = Solution(np.zeros(2, bool), need=problem.need)
+    for c in range(standing):
+        newly = np.zeros(0, np.int64) if c == 0 else np.array([0, 1])
+        pose = _fixed(problem, c).pose
+        solution.fix(FixedSensor(pose, 0.0, 0, 0, newly, np.array([0, 1]), existing=True))
+    assert steps(lp_module.bound_only(problem, solution))[0].sensors == bound
