@@ -478,6 +478,7 @@ def test_prove_and_plan_beats_greedy_and_reports_it():
     # After the bounds: the plan on the fewest masts is already 2; then 5 LP plans.
     after = [r for r in reports if r.bound == 2.0 and r.best == 2.0]
     assert len(after) == 1 + 5 and reports[-6:] == after
+    assert {(r.phase, r.rho) for r in reports} == {("search", 1.0)}
 
 
 def _fixed(problem, c, existing=False, seen=True):
@@ -878,3 +879,32 @@ def test_the_bound_for_another_plan_at_k2_counts_each_standing_sensor(standing, 
         pose = _fixed(problem, c).pose
         solution.fix(FixedSensor(pose, 0.0, 0, 0, newly, np.array([0, 1]), existing=True))
     assert steps(lp_module.bound_only(problem, solution))[0].sensors == bound
+
+
+def test_the_rest_from_every_site_is_per_cost_too(monkeypatch):
+    """Two sensors a mast at most: site 0 (0, 1, 2) cannot hold all three, the rest
+    comes from every site per cost, as the start did."""
+    rows = [[0, 1], [2, 3], [4, 5], [4, 5]]
+    problem = HandLP(rows, 6, [0, 0, 0, 1], max_sensors_per_mast=2, sensor_costs=(1.0, 2.0),
+                     model=[0, 0, 1, 0])  # fmt: skip
+    inst = lp_module.instance(problem.candidates, problem, np.zeros(6, bool))
+    calls = spy(monkeypatch, "complete")
+    go = lp_module.masts_then_plan(problem, problem.candidates, inst, None, None, True)
+    assert sorted(steps(go)[0][1]) == [0, 1, 3]
+    first, rest = calls["complete"]
+    assert rest["pool"].tolist() == [0, 1, 2, 3] and rest["cover"] is first["returned"]
+    assert rest["site_of"] is problem.candidates.position and rest["mast_cost"] == 3.0
+    assert rest["sensor_cost"].tolist() == [1.0, 1.0, 2.0, 1.0]
+
+
+def test_prove_bound_plans_only_when_asked(monkeypatch):
+    """By default no plan on the fewest masts (``bound_only`` needs none); a target
+    whose points have no known place is solved whole, with the masts' MILP."""
+    monkeypatch.setattr(lp_module, "PART_POINTS", 4)
+    calls = spy(monkeypatch, "site_cover")
+    problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="sensors")
+    inst = rows_instance(GREEDY_TRAP, 7, 7)  # no xy
+    go = lp_module.prove_bound(problem, problem.candidates, inst, Solution(np.zeros(7, bool)), None)
+    bound, lp, on_sites, _ = steps(go)[0]
+    assert on_sites is None and lp.parts == 1 and bound.masts == 2
+    assert calls["site_cover"][0]["milp"] is True
