@@ -103,7 +103,9 @@ TESTS_FOR: dict[str, list[str]] = {
         "tests/core/test_mixed_pack.py",
         "tests/core/test_k_coverage.py",
     ],
+    # test_es_steps.py works each mutation and epoch out by hand (scripted draws).
     "autoscoop_blender/core/optimize/es.py": [
+        "tests/core/test_es_steps.py",
         "tests/core/test_es.py",
         "tests/core/test_es_stops.py",
     ],
