@@ -908,3 +908,22 @@ def test_prove_bound_plans_only_when_asked(monkeypatch):
     bound, lp, on_sites, _ = steps(go)[0]
     assert on_sites is None and lp.parts == 1 and bound.masts == 2
     assert calls["site_cover"][0]["milp"] is True
+
+
+@pytest.mark.parametrize(
+    "limit, want",
+    [
+        (6, [0, 1, 2, 3, 4, 5]),  # at the limit: every candidate of the sites
+        (5, [0, 1, 4, 5]),  # past it: 5 // 2 = 2 a site, the largest
+        (3, [0, 4]),  # 3 // 2 = 1 a site (not 1.5)
+        (1, [0, 4]),  # less than one a site: still one
+    ],
+)
+def test_milp_candidates_at_and_past_the_limit(monkeypatch, limit, want):
+    """Site 0 holds candidates 0..3 covering 4, 3, 2, 1 points; site 1 holds 4 and
+    5 covering 2 and 1."""
+    monkeypatch.setattr(lp_module, "MAX_MILP_CANDIDATES", limit)
+    rows = [[0, 1, 2, 3], [0, 1, 2], [0, 1], [0], [0, 1], [0]]
+    inst = rows_instance(rows, 4, 4)
+    site_of = np.array([0, 0, 0, 0, 1, 1])
+    assert lp_module.milp_candidates(inst, site_of, np.array([0, 1]), []).tolist() == want
