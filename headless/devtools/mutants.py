@@ -103,11 +103,13 @@ TESTS_FOR: dict[str, list[str]] = {
         "tests/core/test_mixed_pack.py",
         "tests/core/test_k_coverage.py",
     ],
-    # test_es_steps.py works each mutation and epoch out by hand (scripted draws).
+    # test_es_steps.py works each mutation and epoch out by hand (scripted draws);
+    # test_optimize.py holds whole ES runs: worker processes, resumes (~30 s).
     "autoscoop_blender/core/optimize/es.py": [
         "tests/core/test_es_steps.py",
         "tests/core/test_es.py",
         "tests/core/test_es_stops.py",
+        "tests/core/test_optimize.py",
     ],
 }
 

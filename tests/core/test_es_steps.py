@@ -1,6 +1,6 @@
 """The ES's steps (``optimize/es.py``) with scripted randomness: a generator whose
-every normal draw is its width and every integer draw 0, so each mutation, each
-halved retry and each epoch's population can be worked out by hand."""
+every normal draw is its width and every integer draw its lowest value, so each
+mutation, each halved retry and each epoch's population can be worked out by hand."""
 
 from types import SimpleNamespace
 
@@ -16,7 +16,7 @@ from autoscoop_blender.core.settings import ESParams
 
 class ScriptedRng:
     """Stands in for ``np.random.Generator``: ``normal`` draws its scale (a step of
-    exactly one width), ``integers`` draws 0; the widths asked for are kept."""
+    exactly one width), ``integers`` its lowest value; the widths asked for are kept."""
 
     def __init__(self):
         self.widths = []
@@ -27,7 +27,7 @@ class ScriptedRng:
         return loc + np.broadcast_to(np.asarray(scale, dtype=float), shape).copy()
 
     def integers(self, low, high, size):
-        return np.zeros(size, dtype=np.int64)
+        return np.full(size, low, dtype=np.int64)
 
 
 class Lattice:
@@ -46,25 +46,35 @@ class Lattice:
 
 
 def test_a_step_that_leaves_is_retried_at_half_the_width_then_dropped():
-    """From (0, 0) with widths 4 m: (4, 4) and (2, 2) are not positions, (1, 1) is:
-    the third try lands. With one retry only, the position stays. Pitch 60 + 20 is
-    clipped to 70, yaw 350 + 30 wraps to 20."""
-    space = Lattice([(0, 0), (1, 1)])
+    """From (0, 0) with widths 8 m in x and 4 m in y: (8, 4) and (4, 2) are not
+    positions, (2, 1) is: the third try lands. With one retry only, the position
+    stays. Pitch 60 + 20 is clipped to 70, yaw 350 + 30 wraps to 20."""
+    space = Lattice([(0, 0), (2, 1)])
     pop = np.array([[0.0, 0.0, 60.0, 350.0]])
-    sigma = np.array([4.0, 4.0, 20.0, 30.0])
+    sigma = np.array([8.0, 4.0, 20.0, 30.0])
     rng = ScriptedRng()
     out = mutate(space, pop, sigma, 2, rng)
-    assert out.tolist() == [[1.0, 1.0, 70.0, 20.0]]
-    assert rng.widths == [[4.0, 4.0], [2.0, 2.0], [1.0, 1.0], 20.0, 30.0]
+    assert out.tolist() == [[2.0, 1.0, 70.0, 20.0]]
+    assert rng.widths == [[8.0, 4.0], [4.0, 2.0], [2.0, 1.0], 20.0, 30.0]
     assert pop.tolist() == [[0.0, 0.0, 60.0, 350.0]]  # a copy is mutated
     rng = ScriptedRng()
     assert mutate(space, pop, sigma, 1, rng).tolist() == [[0.0, 0.0, 70.0, 20.0]]
-    assert rng.widths == [[4.0, 4.0], [2.0, 2.0], 20.0, 30.0]
+    assert rng.widths == [[8.0, 4.0], [4.0, 2.0], 20.0, 30.0]
     # A first step that lands is taken at once; pitch below its range is clipped up.
     rng = ScriptedRng()
     low = np.array([[0.0, 0.0, 40.0, 10.0]])
     out = mutate(Lattice([(4, 4)]), low, np.array([4.0, 4.0, -20.0, 30.0]), 2, rng)
     assert out.tolist() == [[4.0, 4.0, 31.0, 40.0]] and len(rng.widths) == 3
+
+
+def test_each_individual_draws_its_own_steps():
+    """With a real generator, 50 copies of one individual end up with 50 different
+    pitches and yaws (one draw per individual, not one for all)."""
+    space = SearchSpace([shapely.box(0, 0, 40, 40)], 1.0, 31.0, 70.0)
+    pop = np.tile([20.0, 20.0, 50.0, 180.0], (50, 1))
+    out = mutate(space, pop, np.array([2.0, 2.0, 5.0, 30.0]), 5, np.random.default_rng(4))
+    assert len(np.unique(out[:, 2])) == 50 and len(np.unique(out[:, 3])) == 50
+    assert len({(x, y) for x, y in out[:, :2]}) > 10
 
 
 BOX = Lattice([(x, y) for x in range(21) for y in range(21)])
@@ -122,6 +132,8 @@ def test_the_best_is_the_best_ever_seen():
         ([0, 0], 0),  # nothing to gain anywhere
         ([4, 3.3], 0),  # within eps = 0.2 of the best
         ([4, 3.1], 1),  # not within: an epoch, whose parents then all score 1
+        ([5, 4], 0),  # exactly eps apart: converged
+        ([1, 0.5], 1),  # a best of 1 or less still has a spread
     ],
 )
 def test_a_search_ends_when_its_parents_converge(scores, epochs):
@@ -130,6 +142,8 @@ def test_a_search_ends_when_its_parents_converge(scores, epochs):
     score = iter(scores + [1.0] * 6)
     search, pops, _ = _run(params, initial, lambda ind: next(score))
     assert search.epochs == epochs and len(pops) == 1 + epochs
+    if scores[0] == scores[1]:  # a tie: the first one seen stays the best
+        assert search.best.tolist() == initial[0].tolist()
 
 
 def test_no_epoch_at_max_epochs_0_and_random_parents_by_default():
@@ -141,9 +155,11 @@ def test_no_epoch_at_max_epochs_0_and_random_parents_by_default():
 
 
 def test_samples_lie_on_the_lattice_within_the_pitch_range():
+    """5,000 samples of a 5 x 5 lattice: every position drawn, pitches over 31 to 70,
+    yaws over the whole circle (one within 1 deg of 0: 1 - (359/360)^5000 ~ 1)."""
     space = SearchSpace([shapely.box(0, 0, 4, 4)], 1.0, 31.0, 70.0)
-    pop = sample(space, 500, np.random.default_rng(1))
-    assert pop.shape == (500, 4)
+    pop = sample(space, 5000, np.random.default_rng(1))
+    assert pop.shape == (5000, 4) and pop[:, 3].min() < 1.0
     assert all(space.member(x, y) for x, y in pop[:, :2])
     assert len({(x, y) for x, y in pop[:, :2]}) == 25  # every one of the 5 x 5 drawn
     assert pop[:, 2].min() >= 31.0 and pop[:, 2].max() <= 70.0 and np.ptp(pop[:, 2]) > 35

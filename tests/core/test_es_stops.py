@@ -1,4 +1,5 @@
-"""The ES's restart toward the gaps, and its patience (core/optimize/es.py)."""
+"""The ES's outer loop (core/optimize/es.py): its restart toward the gaps, its
+patience, its stops and what it fixes, on real scenes and with scripted searches."""
 
 from dataclasses import replace
 
@@ -7,11 +8,14 @@ import pytest
 import shapely
 
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA
+from autoscoop_blender.core.optimize import es as es_module
+from autoscoop_blender.core.optimize.base import FixedSensor, Solution, StopReason
 from autoscoop_blender.core.optimize.es import EvolutionStrategy
 from autoscoop_blender.core.problem import Problem
 from autoscoop_blender.core.run import Run
 from autoscoop_blender.core.settings import ESParams, OptimizeSettings
 from tests.core.flat import box_caster, open_scene
+from tests.core.test_lp import steps
 
 FEW = OptimizeSettings(optimizer="es", rho=0.9, es=ESParams(mu=4, lam=2, max_epochs=2))
 
@@ -59,3 +63,148 @@ def test_patience_is_the_number_of_fruitless_searches_in_a_row(monkeypatch, pati
     assert res.metrics["sensors"] == 0
     assert res.stop_reason.startswith(f"Stopped short of the goal: {patience} searches")
     assert searches == [True, False] * patience  # each: a random start, then a restart
+
+
+# ---------------------------------------------------------------- the outer loop, scripted
+
+# A 60 m x 10 m target 10 m north of a 60 m strip of mast positions, a 2 m grid.
+STRIP = open_scene(shapely.box(0, 10, 60, 20), [shapely.box(0, -1, 60, 1)])
+LEFT = (0.0, 0.0, 40.0, 90.0)  # looks north at the target's west end
+RIGHT = (60.0, 0.0, 40.0, 90.0)  # and at its east end
+AWAY = (30.0, 0.0, 40.0, 270.0)  # looks south: sees nothing
+
+
+def _problem(**settings):
+    base = OptimizeSettings(optimizer="es", rho=1.0, grid_m=2.0, patience=2, seed=5)
+    return Problem(STRIP, box_caster()(), PAPER_CAMERA, replace(base, **settings))
+
+
+def _script(monkeypatch, poses, gaps=lambda coarse: np.zeros((1, 4)), ref=0.0):
+    """Each search returns the next of ``poses`` (x, y, pitch, yaw) as evaluated, after
+    3 epochs and 7 evaluations; the restart's population is ``gaps(coarse)``; the
+    reference footprint (which sets the gain below which a search restarts) ``ref``.
+    Returns the log: ("search", random start?) and ("gaps", coarse) in order."""
+    log, left = [], iter(poses)
+
+    def search(self, initial):
+        log.append(("search", initial is None))
+        pose = self.problem.pose(*next(left))
+        cov, fit = self._evaluate(pose)
+        return pose, cov, fit, 3, 7
+        yield  # a generator, as the real one
+
+    def gap_population(self, coarse):
+        log.append(("gaps", coarse))
+        return gaps(coarse)
+
+    monkeypatch.setattr(EvolutionStrategy, "_search", search)
+    monkeypatch.setattr(EvolutionStrategy, "_gap_population", gap_population)
+    monkeypatch.setattr(es_module, "reference_footprint_m2", lambda model, grid_m: ref)
+    return log
+
+
+def _solve(problem, solution=None):
+    solution = solution or Solution(np.zeros(problem.n_targets, bool), need=problem.need)
+    es = EvolutionStrategy()
+    res, reports = steps(es.solve(problem, solution))
+    assert res is solution  # the solution comes back, filled in
+    return es, res, reports
+
+
+def _seen(problem, pose):
+    return problem.evaluate(problem.pose(*pose), problem.settings.fitness.band_m).covered
+
+
+def test_patience_counts_fruitless_searches_in_a_row(monkeypatch):
+    """LEFT is fixed; AWAY twice (its search and the restart) is one fruitless search;
+    RIGHT is fixed and starts the count again; two more fruitless ones end the run
+    at patience 2 with LEFT and RIGHT."""
+    problem = _problem()
+    log = _script(monkeypatch, [LEFT, AWAY, AWAY, RIGHT, AWAY, AWAY, AWAY, AWAY])
+    es, res, reports = _solve(problem)
+    assert [(s.pose.x, s.pose.yaw_deg) for s in res.sensors] == [(0.0, 90.0), (60.0, 90.0)]
+    assert res.stop_reason == StopReason.gave_up(2)
+    assert [kind for kind, _ in log].count("search") == 8
+    # Each sensor as found: its pose's points, its fitness, 3 epochs, 7 evaluations.
+    first = res.sensors[0]
+    assert set(first.seen) == set(_seen(problem, LEFT)) == set(first.newly)
+    assert first.fitness > 0 and (first.epochs, first.evaluations) == (3, 7)
+    assert set(res.sensors[1].newly) == set(_seen(problem, RIGHT)) - set(first.seen)
+    fixed = [r for r in reports if r.phase == "fixed"]
+    assert [r.fixed for r in fixed] == res.sensors and {r.rho for r in fixed} == {1.0}
+    # What a resumed run needs: the generator's state after the last sensor.
+    assert res.state == {"rng_state": np.random.default_rng(5).bit_generator.state}
+
+
+def test_the_restart_is_kept_when_it_finds_more(monkeypatch):
+    """The random start finds nothing, the restart LEFT: LEFT is fixed; one sensor at
+    most, so the run stops there, saying so."""
+    problem = _problem(max_sensors=1)
+    log = _script(monkeypatch, [AWAY, LEFT])
+    _, res, _ = _solve(problem)
+    assert [s.pose.x for s in res.sensors] == [0.0]
+    assert res.stop_reason == StopReason.sensor_limit(1)
+    assert log == [("search", True), ("gaps", True), ("search", False)]
+
+
+def test_the_restart_probes_coarse_then_fine_then_gives_up(monkeypatch):
+    """No coarse position sees a gap: every position is probed; none either: a search
+    that found nothing ends the run (out of sight); one that found a little is
+    fixed still."""
+    problem = _problem(max_sensors=1)
+    fine_only = lambda coarse: None if coarse else np.zeros((1, 4))  # noqa: E731
+    log = _script(monkeypatch, [AWAY, LEFT], gaps=fine_only)
+    _, res, _ = _solve(problem)
+    assert log == [("search", True), ("gaps", True), ("gaps", False), ("search", False)]
+    assert [s.pose.x for s in res.sensors] == [0.0]
+    log = _script(monkeypatch, [AWAY], gaps=lambda coarse: None)
+    _, res, _ = _solve(_problem())
+    assert log == [("search", True), ("gaps", True), ("gaps", False)]
+    assert res.sensors == []
+    assert res.stop_reason == StopReason.out_of_sight("position in the sensor areas")
+    # LEFT's points are fewer than the gain asked for (a huge reference footprint),
+    # no restart can be aimed: LEFT is fixed all the same.
+    log = _script(monkeypatch, [LEFT], gaps=lambda coarse: None, ref=1e9)
+    _, res, _ = _solve(_problem(max_sensors=1))
+    assert [s.pose.x for s in res.sensors] == [0.0] and len(log) == 3
+
+
+@pytest.mark.parametrize("extra, restarts", [(0, False), (1, True)])
+def test_a_search_restarts_below_a_hundredth_of_the_reference_footprint(
+    monkeypatch, extra, restarts
+):
+    """min_gain = round(0.01 x reference footprint / cell area (4 m^2)): set to LEFT's
+    own count n, LEFT is enough; at n + 1 the search restarts."""
+    problem = _problem(max_sensors=1)
+    n = len(_seen(problem, LEFT))
+    assert problem.grid.cell_area == 4.0 and n > 10
+    log = _script(monkeypatch, [LEFT, LEFT], ref=(n + extra) * 4.0 / 0.01)
+    _solve(problem)
+    assert (("gaps", True) in log) == restarts
+
+
+def test_at_k2_a_point_seen_once_is_still_wanted(monkeypatch):
+    """Every point needed twice: LEFT a second time adds its points again, and is
+    fixed (at k = 1 it would add nothing)."""
+    problem = _problem(coverage_k=2, max_sensors=2)
+    _script(monkeypatch, [LEFT, LEFT])
+    _, res, _ = _solve(problem)
+    assert [s.pose.x for s in res.sensors] == [0.0, 0.0]
+    assert set(res.sensors[1].newly) == set(_seen(problem, LEFT))
+
+
+def test_a_resumed_run_starts_from_the_sensors_and_the_state_it_was_given(monkeypatch):
+    """A sensor that stood already is marked with all it sees (not just its new
+    points); the generator goes on from the state saved. The goal is met: no search."""
+    problem = _problem(rho=0.01)
+    seen = _seen(problem, LEFT)
+    start = Solution(np.zeros(problem.n_targets, bool), need=problem.need)
+    start.fix(FixedSensor(problem.pose(*LEFT), 1.0, 0, 0, seen[:2], seen))
+    start.state = {"rng_state": np.random.default_rng(99).bit_generator.state}
+    log = _script(monkeypatch, [])
+    es, res, _ = _solve(problem, start)
+    assert log == [] and res.stop_reason == StopReason.reached(0.01)
+    assert np.flatnonzero(es.fixed.counts).tolist() == sorted(seen.tolist())
+    assert es.fixed.positions == [(0.0, 0.0)]
+    assert len(es.log) == 1 and es.log[0][0] is seen and es.log[0][1] == (0.0, 0.0)
+    assert es.rng.bit_generator.state == start.state["rng_state"]
