@@ -174,10 +174,10 @@ class GapProblem:
 
     reaches = {(0.0, 0.0): [0, 1], (4.0, 0.0): [1], (5.0, 0.0): [0]}
 
-    def __init__(self, mu=3):
+    def __init__(self, mu=3, points=((0.0, 10.0, 0.0), (10.0, 10.0, 0.0))):
         self.space = SearchSpace([shapely.box(0, 0, 5, 0.2)], 1.0, 31.0, 70.0)
         self.space.positions = np.array([(0.0, 0.0), (4.0, 0.0), (5.0, 0.0)])
-        self.grid = SimpleNamespace(target_points=np.array([(0.0, 10.0, 0.0), (10.0, 10.0, 0.0)]))
+        self.grid = SimpleNamespace(target_points=np.array(points))
         self.model = PAPER_CAMERA  # pitch 31 to 70 deg
         self.settings = SimpleNamespace(es=ESParams(mu=mu))
         self.probed = []
@@ -198,9 +198,9 @@ class ChoosingRng(ScriptedRng):
         return np.full(size, int(np.argmax(p)))
 
 
-def _gaps(problem, wanted, coarse):
+def _gaps(problem, wanted, coarse, rng=None):
     es = EvolutionStrategy()
-    es.problem, es.rng = problem, ChoosingRng()
+    es.problem, es.rng = problem, rng or ChoosingRng()
     es.fixed = SimpleNamespace(short=np.array(wanted))
     return es._gap_population(coarse), es.rng
 
@@ -236,3 +236,28 @@ def test_the_restart_probes_every_4th_line_when_coarse_and_gives_up_when_none_se
     pop, rng = _gaps(GapProblem(), [False, True], coarse=True)
     assert rng.p == [0.5, 0.5] and pop[0] == pytest.approx([0.0, 0.0, 31.0, 45.0 + 15.0])
     assert _gaps(GapProblem(), [False, False], coarse=False)[0] is None
+
+
+def test_the_restart_aims_south_and_steep_within_the_pitch_range():
+    """Point 0 at (0, 1, 0), point 1 at (0, -10, 0): from (0, 0, 6 m) point 0 lies 80.5
+    deg down (clipped to 70 with its 5 deg more); point 1 (seen from (4, 0) only,
+    drawn second) at yaw 360 - atan2(10, 4) = 291.8 deg."""
+    problem = GapProblem(points=((0.0, 1.0, 0.0), (0.0, -10.0, 0.0)))
+    pop, _ = _gaps(problem, [True, False], coarse=False)
+    assert pop[0] == pytest.approx([0.0, 0.0, 70.0, 90.0 + 15.0])
+    pop, rng = _gaps(problem, [False, True], coarse=False)
+    assert rng.p == [0.5, 0.5, 0.0]
+    yaw = 360.0 - np.degrees(np.arctan2(10.0, 0.0))  # from (0, 0): due south
+    assert pop[0][3] == pytest.approx((yaw + 15.0) % 360.0)
+    gaps = GapProblem(points=((0.0, -10.0, 0.0), (0.0, -10.0, 0.0)))
+    pop, _ = _gaps(gaps, [True, False], coarse=False)
+    assert pop[0][3] == pytest.approx(270.0 + 15.0)
+
+
+def test_each_restarted_individual_draws_its_own_aim():
+    """With a real generator, 12 individuals aimed at one point (56.3 deg down from
+    (0, 0)) get 12 pitches and 12 yaws, spread about the aim (5 and 15 deg)."""
+    problem = GapProblem(mu=12, points=((0.0, 4.0, 0.0), (10.0, 10.0, 0.0)))
+    pop, _ = _gaps(problem, [True, False], coarse=False, rng=np.random.default_rng(3))
+    assert len(np.unique(pop[:, 2])) == 12 and len(np.unique(pop[:, 3])) == 12
+    assert np.all((pop[:, 2] >= 31.0) & (pop[:, 2] <= 70.0))

@@ -111,8 +111,13 @@ def _solve(problem, solution=None):
     return es, res, reports
 
 
+def _evaluated(problem, pose):
+    """``pose`` (x, y, pitch, yaw) evaluated as the ES does."""
+    return problem.evaluate(problem.pose(*pose), problem.settings.fitness.band_m)
+
+
 def _seen(problem, pose):
-    return problem.evaluate(problem.pose(*pose), problem.settings.fitness.band_m).covered
+    return _evaluated(problem, pose).covered
 
 
 def test_patience_counts_fruitless_searches_in_a_row(monkeypatch):
@@ -132,6 +137,12 @@ def test_patience_counts_fruitless_searches_in_a_row(monkeypatch):
     assert set(res.sensors[1].newly) == set(_seen(problem, RIGHT)) - set(first.seen)
     fixed = [r for r in reports if r.phase == "fixed"]
     assert [r.fixed for r in fixed] == res.sensors and {r.rho for r in fixed} == {1.0}
+    # What was spent: one evaluation per (scripted) search, and its sight rays (the
+    # same evaluations in the same order on a fresh problem: a position's sight lines
+    # are cast once).
+    fresh = _problem()
+    spent = [_evaluated(fresh, p).rays for p in (LEFT, AWAY, AWAY, RIGHT) + (AWAY,) * 4]
+    assert res.evaluations == 8 and res.sight_rays == sum(spent) > spent[-1]
     # What a resumed run needs: the generator's state after the last sensor.
     assert res.state == {"rng_state": np.random.default_rng(5).bit_generator.state}
 
@@ -208,3 +219,36 @@ def test_a_resumed_run_starts_from_the_sensors_and_the_state_it_was_given(monkey
     assert es.fixed.positions == [(0.0, 0.0)]
     assert len(es.log) == 1 and es.log[0][0] is seen and es.log[0][1] == (0.0, 0.0)
     assert es.rng.bit_generator.state == start.state["rng_state"]
+    # A sensor with no ``seen`` is marked with its new points.
+    start = Solution(np.zeros(problem.n_targets, bool), need=problem.need)
+    start.fix(FixedSensor(problem.pose(*LEFT), 1.0, 0, 0, seen[:2]))
+    es, _, _ = _solve(problem, start)
+    assert np.flatnonzero(es.fixed.counts).tolist() == sorted(seen[:2].tolist())
+
+
+def test_the_search_reports_each_evaluation(monkeypatch):
+    """A real search (4 parents, 2 offspring, at most 2 epochs): a "search" report per
+    evaluation, its epoch rising from 0, then one "fixed" per sensor; all at rho."""
+    problem = _problem(max_sensors=1, es=ESParams(mu=4, lam=2, max_epochs=2))
+    _, res, reports = _solve(problem)
+    search = [r for r in reports if r.phase == "search"]
+    assert [r.phase for r in reports[len(search) :]] == ["fixed"]
+    assert {r.rho for r in reports} == {1.0}
+    epochs = [r.epoch for r in search]
+    assert epochs[:4] == [0] * 4 and epochs == sorted(epochs) and epochs[-1] >= 1
+    assert len(search) == res.evaluations - 1  # and the winner evaluated once more
+
+
+def test_an_optimizer_holds_its_pool_until_closed():
+    class Pool:
+        workers, shut = 2, 0
+
+        def shutdown(self):
+            self.shut += 1
+
+    pool = Pool()
+    es = EvolutionStrategy(pool)
+    assert es.pool is pool
+    es.close()
+    es.close()
+    assert es.pool is None and pool.shut == 1
