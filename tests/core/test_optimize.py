@@ -126,7 +126,8 @@ def test_worker_processes_give_the_same_answer():
     assert poses(together) == poses(alone)
     assert together.metrics["coverage_fraction"] == alone.metrics["coverage_fraction"]
     assert together.metrics["evaluations"] == alone.metrics["evaluations"]
-    assert together.metrics["rays_cast"] == alone.metrics["rays_cast"]
+    # Each worker casts a position's sight lines once for itself: no fewer in all.
+    assert together.metrics["rays_cast"] >= alone.metrics["rays_cast"]
     assert r.optimizer.pool is None  # the workers are gone at the end
     resumed = run(resume=records[:2], workers=2)[1]
     assert poses(resumed) == poses(alone)
