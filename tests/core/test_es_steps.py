@@ -252,6 +252,10 @@ def test_the_restart_aims_south_and_steep_within_the_pitch_range():
     gaps = GapProblem(points=((0.0, -10.0, 0.0), (0.0, -10.0, 0.0)))
     pop, _ = _gaps(gaps, [True, False], coarse=False)
     assert pop[0][3] == pytest.approx(270.0 + 15.0)
+    # An aim at yaw 355 deg: its 15 deg more wrap round to 10.
+    ahead = 10.0 * np.array([np.cos(np.radians(355.0)), np.sin(np.radians(355.0)), 0.0])
+    pop, _ = _gaps(GapProblem(points=(ahead, ahead)), [True, False], coarse=False)
+    assert pop[0][3] == pytest.approx(10.0)
 
 
 def test_each_restarted_individual_draws_its_own_aim():
