@@ -55,7 +55,9 @@ TESTS_FOR: dict[str, list[str]] = {
         "tests/core/test_layout_metrics.py",
         "tests/core/test_coverage_map.py",
     ],
+    # test_coverage_base.py checks base.py's pieces one at a time on hand-made input.
     "autoscoop_blender/core/coverage/base.py": [
+        "tests/core/test_coverage_base.py",
         "tests/core/test_coverage.py",
         "tests/core/test_fitness.py",
         "tests/core/test_footprint.py",
