@@ -64,6 +64,10 @@ def test_sight_lines_by_pythagoras(target_height):
         warnings.simplefilter("error")
         own = sight_lines(grid, on_ground, cells[1:], pixels=True)
     assert own.facing is not None and np.isnan(own.d).all()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        in_view, density, _ = view(PAPER_CAMERA, np.eye(3), own)
+    assert in_view.tolist() == [False] and density.tolist() == [0.0]
 
 
 class ScriptedCaster:
@@ -128,13 +132,17 @@ def _regions(px, kind, region_of):
 
 
 def test_the_pixel_density_each_point_needs():
-    """Target points 0 (region 1) and 1 (region 0) and an outside cell (-1). Region 1
-    asks for 62 px/m (observe); the CCTV camera detects at 25 px/m."""
+    """Target points 0 (region 1) and 1 (region 0) and an outside cell (-1; the last
+    target point is in region 1 too). Region 1 asks for 62 px/m (observe); the CCTV
+    camera detects at 25 px/m."""
     ordinal = np.array([0, 1, -1])
-    asks = _regions([0.0, 62.0], [-1, -1], [1, 0])
+    asks = _regions([0.0, 62.0], [-1, -1], [1, 0, 1])
     assert pixel_need(asks, CCTV_CAMERA, ordinal).tolist() == [62.0, 25.0, 25.0]
     # A model without a resolution cannot give pixels: it covers no point that asks.
     assert pixel_need(asks, PAPER_CAMERA, ordinal).tolist() == [math.inf, 0.0, 0.0]
+    # However little it asks.
+    little = _regions([0.0, 0.5], [-1, -1], [1, 0, 1])
+    assert pixel_need(little, PAPER_CAMERA, ordinal).tolist() == [math.inf, 0.0, 0.0]
     # Nothing asked anywhere: nothing needed of a model without a resolution.
     none = _regions([0.0, 0.0], [-1, -1], [1, 0])
     assert pixel_need(none, PAPER_CAMERA, ordinal) is None
