@@ -147,6 +147,8 @@ def test_the_pixel_density_each_point_needs():
     none = _regions([0.0, 0.0], [-1, -1], [1, 0])
     assert pixel_need(none, PAPER_CAMERA, ordinal) is None
     assert pixel_need(none, CCTV_CAMERA, ordinal).tolist() == [25.0] * 3
+    # A camera with pixels asked for none: nothing needed either.
+    assert pixel_need(none, replace(CCTV_CAMERA, min_px_per_m=0.0), ordinal) is None
 
 
 @pytest.mark.parametrize(
