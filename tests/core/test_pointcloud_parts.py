@@ -1,0 +1,114 @@
+"""The paper's pointcloud method in parts (``coverage/pointcloud.py``): the rays per
+pattern ray, each hit's step to its nearer neighbour and the density and spacing
+that follow, the raster that keeps hits near the cells asked about, and chi
+interpolated in a triangle. Every value is worked out by hand on a few points."""
+
+import math
+from dataclasses import replace
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from autoscoop_blender.core.coverage.pointcloud import (
+    PointcloudEvaluator,
+    _interpolate,
+    _near,
+    _nearer_step,
+    _pattern_density,
+    auto_oversample,
+)
+from autoscoop_blender.core.geom.alpha import triangulate
+from autoscoop_blender.core.model.sensors import PAPER_CAMERA
+
+# 1 deg between rays across (90 over 90), 0.5 deg down (45 over 90), 100 m range: the
+# rays land 100 x pi / 180 = 1.745 m apart at full range.
+WIDE = replace(PAPER_CAMERA, h_fov_deg=90.0, rays_h=90, v_fov_deg=45.0, rays_v=90,
+               range_m=100.0)  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "grid_m, want",
+    [(0.5, 4), (1.0, 2), (2.0, 1), (10.0, 1), (100.0 * math.pi / 180.0, 1)],
+)
+def test_rays_per_pattern_ray_put_neighbours_a_cell_apart(grid_m, want):
+    """ceil(1.745 / grid), at least 1; exactly one cell apart needs no more rays."""
+    assert auto_oversample(WIDE, grid_m) == want
+    assert (
+        PointcloudEvaluator(SimpleNamespace(spacing=grid_m), None).rays_per_pattern_ray(WIDE)
+        == want
+    )
+    assert PointcloudEvaluator(None, None, oversample=3).rays_per_pattern_ray(WIDE) == 3
+
+
+def _row(xs, ys=None):
+    """(1, n, 2) hits along one pattern row; nan x: a miss."""
+    ys = np.zeros(len(xs)) if ys is None else ys
+    xy = np.array([[(x, y) for x, y in zip(xs, ys)]], dtype=float)
+    return xy, ~np.isnan(xy[..., 0])
+
+
+def test_each_hit_steps_to_its_nearer_neighbour():
+    """Hits at x = 0, 1, 3, 6: steps 1, 1 (back, nearer), 2 (back), 3 (the last has
+    only its back step). With the hit at 3 missing: 1, 1, none, none."""
+    xy, hit = _row([0.0, 1.0, 3.0, 6.0])
+    assert _nearer_step(xy, hit, axis=1)[0, :, 0].tolist() == [1.0, 1.0, 2.0, 3.0]
+    xy, hit = _row([0.0, 1.0, np.nan, 6.0])
+    steps = _nearer_step(xy, hit, axis=1)[0, :, 0]
+    assert steps[:2].tolist() == [1.0, 1.0] and np.isnan(steps[2:]).all()
+    # Along the other axis a single row has no neighbour at all.
+    assert np.isnan(_nearer_step(xy, hit, axis=0)).all()
+
+
+def test_the_density_of_a_regular_grid_of_hits():
+    """3 x 3 hits 2 m apart in x, 1 m in y: each stands for 2 m^2, density 1/2 (1/8
+    with 2 x 2 rays per pattern ray), spacing 2. A missed ray: density and spacing 0;
+    hits in a line (a wall seen edge on) stand for no area: infinite density."""
+    xs, ys = np.meshgrid([0.0, 2.0, 4.0], [0.0, 1.0, 2.0])
+    xy = np.stack([xs, ys], axis=-1)
+    hit = np.ones((3, 3), dtype=bool)
+    density, spacing = _pattern_density(xy, hit, 1)
+    assert np.allclose(density, 0.5) and np.allclose(spacing, 2.0)
+    assert np.allclose(_pattern_density(xy, hit, 4)[0], 0.125)
+    xy[1, 1], hit[1, 1] = np.nan, False
+    density, spacing = _pattern_density(xy, hit, 1)
+    assert density[1, 1] == 0.0 and spacing[1, 1] == 0.0 and density[0, 0] == 0.5
+    line = np.stack([xs, np.zeros((3, 3))], axis=-1)  # every row on y = 0
+    assert np.isinf(_pattern_density(line, np.ones((3, 3), bool), 1)[0]).all()
+
+
+def test_hits_near_the_cells_asked_about():
+    """One cell at (0, 0) on a 1 m grid, reach 2 m (give or take a cell): a hit 3 m
+    away counts, 5.5 m and 50 m away do not; no cells, no hit."""
+    grid = SimpleNamespace(spacing=1.0)
+    pts = np.array([(0.0, 3.0), (0.0, 5.5), (-50.0, 0.0), (2.0, 2.0)])
+    near = _near(grid, pts, np.array([(0.0, 0.0)]), 2.0)
+    assert near.tolist() == [True, False, False, True]
+    assert _near(grid, pts, np.zeros((0, 2)), 2.0).tolist() == [False] * 4
+
+
+def test_chi_is_interpolated_in_its_triangle_and_walls_are_capped():
+    """Corners (0, 0), (1, 0), (0, 1) at 1, 2, 3: at (0.25, 0.25) the weights are
+    0.5, 0.25, 0.25, so 0.5 + 0.5 + 0.75 = 1.75. An infinite corner takes the densest
+    finite one (3): 2.0; all infinite: 0."""
+    tri = triangulate(np.array([(0.0, 0.0), (1.0, 0.0), (0.0, 1.0)]))
+    at = np.array([(0.25, 0.25)])
+    simplex = tri.locate_kept(at, np.ones(1, dtype=bool), 1.0)
+    values = np.array([1.0, 2.0, 3.0])
+    assert _interpolate(tri, values, at, simplex) == pytest.approx([1.75])
+    assert _interpolate(tri, np.array([1.0, np.inf, 3.0]), at, simplex) == pytest.approx([2.0])
+    assert _interpolate(tri, np.full(3, np.inf), at, simplex).tolist() == [0.0]
+    assert _interpolate(tri, values, np.zeros((0, 2)), simplex[:0]).shape == (0,)
+
+
+def test_the_alpha_radius_fixed_or_from_the_widest_corner_spacing():
+    """Two triangles over corners spaced 1, 2, 3, 4 apart: alpha 1.5 allows 1.5 x the
+    widest corner spacing of each; ``alpha_m`` fixes it."""
+    tri = triangulate(np.array([(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)]))
+    spacing = np.array([1.0, 2.0, 3.0, 4.0])
+    scaled = PointcloudEvaluator(None, None, alpha=1.5)
+    want = [1.5 * spacing[s].max() for s in tri.simplices]
+    assert scaled._radius_limit(tri, spacing).tolist() == want
+    assert scaled._max_radius(spacing) == 6.0 and scaled._max_radius(np.zeros(0)) == 0.0
+    fixed = PointcloudEvaluator(None, None, alpha=1.5, alpha_m=2.5)
+    assert fixed._radius_limit(tri, spacing) == 2.5 and fixed._max_radius(spacing) == 2.5
