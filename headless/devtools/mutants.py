@@ -77,7 +77,9 @@ TESTS_FOR: dict[str, list[str]] = {
         "tests/core/test_coverage.py",
         "tests/core/test_dori.py",
     ],
+    # test_pointcloud_parts.py works the method's parts out by hand on a few hits.
     "autoscoop_blender/core/coverage/pointcloud.py": [
+        "tests/core/test_pointcloud_parts.py",
         "tests/core/test_coverage.py",
         "tests/core/test_footprint.py",
     ],
