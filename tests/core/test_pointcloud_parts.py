@@ -4,6 +4,7 @@ that follow, the raster that keeps hits near the cells asked about, and chi
 interpolated in a triangle. Every value is worked out by hand on a few points."""
 
 import math
+import warnings
 from dataclasses import replace
 from types import SimpleNamespace
 
@@ -74,17 +75,34 @@ def test_the_density_of_a_regular_grid_of_hits():
     density, spacing = _pattern_density(xy, hit, 1)
     assert density[1, 1] == 0.0 and spacing[1, 1] == 0.0 and density[0, 0] == 0.5
     line = np.stack([xs, np.zeros((3, 3))], axis=-1)  # every row on y = 0
-    assert np.isinf(_pattern_density(line, np.ones((3, 3), bool), 1)[0]).all()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no division-by-zero warning for it
+        assert np.isinf(_pattern_density(line, np.ones((3, 3), bool), 1)[0]).all()
+
+
+def test_the_density_of_a_sheared_grid_of_hits():
+    """Steps (1, 0.5) along a row and (0.25, 0.5) down a column: each hit stands for
+    the parallelogram |1 x 0.5 - 0.5 x 0.25| = 0.375 m^2, density 1 / 0.375; its
+    spacing is the longer step, sqrt(1.25)."""
+    i, j = np.meshgrid(np.arange(3.0), np.arange(3.0))  # j down the columns, i along
+    xy = np.stack([1.0 * i + 0.25 * j, 0.5 * i + 0.5 * j], axis=-1)
+    density, spacing = _pattern_density(xy, np.ones((3, 3), bool), 1)
+    assert np.allclose(density, 1 / 0.375) and np.allclose(spacing, math.sqrt(1.25))
 
 
 def test_hits_near_the_cells_asked_about():
-    """One cell at (0, 0) on a 1 m grid, reach 2 m (give or take a cell): a hit 3 m
-    away counts, 5.5 m and 50 m away do not; no cells, no hit."""
-    grid = SimpleNamespace(spacing=1.0)
-    pts = np.array([(0.0, 3.0), (0.0, 5.5), (-50.0, 0.0), (2.0, 2.0)])
-    near = _near(grid, pts, np.array([(0.0, 0.0)]), 2.0)
-    assert near.tolist() == [True, False, False, True]
-    assert _near(grid, pts, np.zeros((0, 2)), 2.0).tolist() == [False] * 4
+    """Cells at (10, 20) and (14, 20) on a 2 m grid, reach 3 m: a hit counts within
+    reach + one cell (5 m) on the raster, whose cells start at (5, 15), 2 m each.
+    (10, 24), (17, 20) and (6, 20) are 2 cells from a query cell: near; (20, 20) is 3
+    cells away, (4, 20) and (21.5, 20) off the raster: not near. No cells: none."""
+    grid = SimpleNamespace(spacing=2.0)
+    cells = np.array([(10.0, 20.0), (14.0, 20.0)])
+    pts = np.array([(10.0, 24.0), (17.0, 20.0), (6.0, 20.0), (20.0, 20.0), (4.0, 20.0),
+                    (21.5, 20.0)])  # fmt: skip
+    near = _near(grid, pts, cells, 3.0)
+    assert near.tolist() == [True, True, True, False, False, False]
+    assert near.dtype == bool
+    assert _near(grid, pts, np.zeros((0, 2)), 3.0).tolist() == [False] * 6
 
 
 def test_chi_is_interpolated_in_its_triangle_and_walls_are_capped():
@@ -101,6 +119,17 @@ def test_chi_is_interpolated_in_its_triangle_and_walls_are_capped():
     assert _interpolate(tri, values, np.zeros((0, 2)), simplex[:0]).shape == (0,)
 
 
+def test_each_models_pattern_is_built_once():
+    """2 x 2 rays per pattern ray: a 4 x 6 pattern gives (8, 12) directions, unit
+    vectors, the same array on the next call."""
+    small = replace(PAPER_CAMERA, rays_h=6, rays_v=4)
+    ev = PointcloudEvaluator(None, None, oversample=2)
+    dirs = ev._pattern(small)
+    assert dirs.shape == (8, 12, 3) and np.allclose(np.linalg.norm(dirs, axis=-1), 1.0)
+    assert ev._pattern(small) is dirs
+    assert ev._pattern(replace(small, rays_h=5)).shape == (8, 10, 3)
+
+
 def test_the_alpha_radius_fixed_or_from_the_widest_corner_spacing():
     """Two triangles over corners spaced 1, 2, 3, 4 apart: alpha 1.5 allows 1.5 x the
     widest corner spacing of each; ``alpha_m`` fixes it."""
@@ -110,5 +139,6 @@ def test_the_alpha_radius_fixed_or_from_the_widest_corner_spacing():
     want = [1.5 * spacing[s].max() for s in tri.simplices]
     assert scaled._radius_limit(tri, spacing).tolist() == want
     assert scaled._max_radius(spacing) == 6.0 and scaled._max_radius(np.zeros(0)) == 0.0
+    assert PointcloudEvaluator(None, None)._max_radius(spacing) == 4.0  # alpha 1
     fixed = PointcloudEvaluator(None, None, alpha=1.5, alpha_m=2.5)
     assert fixed._radius_limit(tri, spacing) == 2.5 and fixed._max_radius(spacing) == 2.5
