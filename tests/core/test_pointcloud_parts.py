@@ -57,6 +57,9 @@ def test_each_hit_steps_to_its_nearer_neighbour():
     xy, hit = _row([0.0, 1.0, np.nan, 6.0])
     steps = _nearer_step(xy, hit, axis=1)[0, :, 0]
     assert steps[:2].tolist() == [1.0, 1.0] and np.isnan(steps[2:]).all()
+    # Equally near both ways (1, 0.5) back and (1, -0.5) ahead: the step ahead.
+    xy, hit = _row([0.0, 1.0, 2.0], [0.0, 0.5, 0.0])
+    assert _nearer_step(xy, hit, axis=1)[0, 1].tolist() == [1.0, -0.5]
     # Along the other axis a single row has no neighbour at all.
     assert np.isnan(_nearer_step(xy, hit, axis=0)).all()
 
@@ -117,6 +120,16 @@ def test_chi_is_interpolated_in_its_triangle_and_walls_are_capped():
     assert _interpolate(tri, np.array([1.0, np.inf, 3.0]), at, simplex) == pytest.approx([2.0])
     assert _interpolate(tri, np.full(3, np.inf), at, simplex).tolist() == [0.0]
     assert _interpolate(tri, values, np.zeros((0, 2)), simplex[:0]).shape == (0,)
+    # Two triangles far apart, each with an infinite corner: each takes its own
+    # densest (3 and 7), not the densest of all: (1 + 3 + 3) / 3 and (7 + 7 + 5) / 3 at
+    # their centroids.
+    pts = np.array([(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (10.0, 0.0), (11.0, 0.0), (10.0, 1.0)])
+    apart = triangulate(pts)
+    centres = np.array([pts[:3].mean(axis=0), pts[3:].mean(axis=0)])
+    cells = apart.locate_kept(centres, np.ones(len(apart.simplices), dtype=bool), 1.0)
+    values = np.array([1.0, np.inf, 3.0, 7.0, np.inf, 5.0])
+    got = _interpolate(apart, values, centres, cells)
+    assert got.tolist() == pytest.approx([(1 + 3 + 3) / 3, (7 + 7 + 5) / 3])
 
 
 def test_each_models_pattern_is_built_once():
@@ -128,6 +141,9 @@ def test_each_models_pattern_is_built_once():
     assert dirs.shape == (8, 12, 3) and np.allclose(np.linalg.norm(dirs, axis=-1), 1.0)
     assert ev._pattern(small) is dirs
     assert ev._pattern(replace(small, rays_h=5)).shape == (8, 10, 3)
+    # Without a set oversampling, the model's own: ceil(20 deg x 80 m / 14 m) = 2.
+    auto = PointcloudEvaluator(SimpleNamespace(spacing=14.0), None)
+    assert auto._pattern(small).shape == (8, 12, 3)
 
 
 def test_the_alpha_radius_fixed_or_from_the_widest_corner_spacing():
