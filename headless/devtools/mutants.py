@@ -77,11 +77,13 @@ TESTS_FOR: dict[str, list[str]] = {
         "tests/core/test_coverage.py",
         "tests/core/test_dori.py",
     ],
-    # test_pointcloud_parts.py works the method's parts out by hand on a few hits.
+    # test_pointcloud_parts.py works the method's parts out by hand on a few hits;
+    # test_dori.py holds the pixel-density answers of a camera with a resolution.
     "autoscoop_blender/core/coverage/pointcloud.py": [
         "tests/core/test_pointcloud_parts.py",
         "tests/core/test_coverage.py",
         "tests/core/test_footprint.py",
+        "tests/core/test_dori.py",
     ],
     # test_mixed_pack.py holds the per-model costs and the sensors-per-mast cap that
     # greedy, the cover moves, the bound's rows and the lp pipeline all take.
