@@ -11,6 +11,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from autoscoop_blender.core.coverage.base import place
 from autoscoop_blender.core.coverage.pointcloud import (
     PointcloudEvaluator,
     _interpolate,
@@ -21,6 +22,7 @@ from autoscoop_blender.core.coverage.pointcloud import (
 )
 from autoscoop_blender.core.geom.alpha import triangulate
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA
+from tests.core.flat import down_camera, flat_grid
 
 # 1 deg between rays across (90 over 90), 0.5 deg down (45 over 90), 100 m range: the
 # rays land 100 x pi / 180 = 1.745 m apart at full range.
@@ -158,3 +160,31 @@ def test_the_alpha_radius_fixed_or_from_the_widest_corner_spacing():
     assert PointcloudEvaluator(None, None)._max_radius(spacing) == 4.0  # alpha 1
     fixed = PointcloudEvaluator(None, None, alpha=1.5, alpha_m=2.5)
     assert fixed._radius_limit(tri, spacing) == 2.5 and fixed._max_radius(spacing) == 2.5
+
+
+def test_a_camera_straight_down_over_a_target_with_a_margin():
+    """The 60 x 60 deg camera 10 m over (10, 10) sees the square 2 x 10 tan 30 deg =
+    11.55 m on a side, x and y in 4.23 .. 15.77: of the 1 m cells, the 12 x 12 with
+    centres 4.5 .. 15.5. The target is the 10 x 10 of them from 5.5 to 14.5 (every
+    target point, ordinal 0 too); the other 44 lie outside it. One ray per pattern
+    ray: 192 x 160 rays, the footprint the square less half a pixel each side. The
+    pattern's density is uniform, 30,720 / (4 tan^2 30 deg x 100 m^2) = 230.4
+    points/m^2: asked for 231, no point is covered, all 100 are still seen."""
+    grid, caster = flat_grid(spacing=1.0, target=(5, 5, 15, 15))
+    model = down_camera(80.0)
+    ev = PointcloudEvaluator(grid, caster, oversample=1)
+    pose = place(grid, 10.0, 10.0, 10.0, 90.0, 0.0)
+    cov = ev.evaluate(model, pose)
+    assert (cov.pose, cov.model, cov.method) == (pose, model, "pointcloud")
+    assert sorted(cov.covered.tolist()) == list(range(100)) and cov.rays == 192 * 160
+    assert cov.visible is None and cov.footprint_m2 is None and len(cov.outside) == 0
+    full = ev.evaluate(model, pose, outside_band_m=math.inf, visibility=True)
+    assert np.array_equal(np.sort(full.covered), np.sort(cov.covered))
+    assert len(full.outside) == 44 and sorted(full.visible.tolist()) == list(range(100))
+    # The rays pass through pixel centres: the outermost lie half a pixel inside.
+    side = 20 * math.tan(math.radians(30))
+    want = (side - side / 192) * (side - side / 160)
+    assert full.footprint_m2 == pytest.approx(want, rel=1e-4)
+    thin = ev.evaluate(replace(model, min_density_per_m2=231.0), pose, visibility=True)
+    assert len(thin.covered) == 0 and sorted(thin.visible.tolist()) == list(range(100))
+    assert ev.evaluate(replace(model, min_density_per_m2=230.0), pose).covered.size == 100
