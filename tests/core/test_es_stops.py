@@ -163,7 +163,10 @@ def test_the_restart_probes_coarse_then_fine_then_gives_up(monkeypatch):
     that found nothing ends the run (out of sight); one that found a little is
     fixed still."""
     problem = _problem(max_sensors=1)
-    fine_only = lambda coarse: None if coarse else np.zeros((1, 4))  # noqa: E731
+
+    def fine_only(coarse):
+        return None if coarse else np.zeros((1, 4))
+
     log = _script(monkeypatch, [AWAY, LEFT], gaps=fine_only)
     _, res, _ = _solve(problem)
     assert log == [("search", True), ("gaps", True), ("gaps", False), ("search", False)]
