@@ -345,19 +345,22 @@ def layout_metrics(
     flat-ground footprint (``reference_footprint_m2``; with several models, the mean
     of each sensor's ratio); overlap_factor = sum of per-sensor covered target m^2 /
     target m^2; mean_epochs_per_sensor (None when not optimized); evaluations, wall_s,
-    rays_cast. Ratios are None for a layout with no sensor.
+    rays_cast. Ratios are None for a layout with no sensor (relative_sensor_coverage
+    also when no sensor's model has a reference footprint).
     """
     n = len(coverages)
     cell_area = grid_m**2
     target_m2 = len(n_covered) * cell_area
     refs = [reference_footprint_m2(c.model, grid_m) for c in coverages]
     footprints = [c.footprint_m2 or 0.0 for c in coverages]
-    if n and len(set(refs)) == 1:
-        relative: float | None = round(float(np.mean(footprints)) / refs[0], 4)
-    elif n:
-        relative = round(float(np.mean(np.divide(footprints, refs))), 4)
-    else:
-        relative = None
+    # A model whose threshold no flat ground meets has no reference footprint: its
+    # sensors have no ratio (all of them: none).
+    rated = [(f, r) for f, r in zip(footprints, refs) if r > 0]
+    relative: float | None = None
+    if rated and len(set(refs)) == 1:
+        relative = round(float(np.mean(footprints)) / refs[0], 4)
+    elif rated:
+        relative = round(float(np.mean([f / r for f, r in rated])), 4)
     k = np.ones(len(n_covered), dtype=np.int32) if need is None else need
     covered = int(np.count_nonzero(n_covered >= k))
     return {
