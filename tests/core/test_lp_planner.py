@@ -91,6 +91,25 @@ def poses_of(solution):
     return [round(s.pose.yaw_deg / 10.0) for s in solution.sensors]
 
 
+def spy(monkeypatch, *names):
+    """Wrap lp.py's ``names`` (functions it calls): each call's arguments by name, the
+    defaults filled in, and under "returned" what it returned, listed per name."""
+    calls = {name: [] for name in names}
+    for name in names:
+        real = getattr(lp_module, name)
+
+        def wrapper(*args, _real=real, _name=name, **kwargs):
+            bound = inspect.signature(_real).bind(*args, **kwargs)
+            bound.apply_defaults()
+            call = dict(bound.arguments)
+            calls[_name].append(call)
+            call["returned"] = _real(*args, **kwargs)
+            return call["returned"]
+
+        monkeypatch.setattr(lp_module, name, wrapper)
+    return calls
+
+
 # ---------------------------------------------------------------- what is left
 
 
@@ -129,7 +148,7 @@ def test_the_instance_of_a_fresh_start_and_points_already_at_their_k():
     counts = np.array([0, 2, 2, 0, 0], np.int32)
     at_k = lp_module.instance(problem.candidates, problem, none, counts)
     assert at_k.k.tolist() == [1, 1, 1, 1, 1] and at_k.goal == 4
-    # The goal is what can be covered when that is less: point 1 needs 2, seen by 2.
+    # The goal is what can be covered when that is less: point 1 needs 3, seen by 2.
     short = HandLP(rows, 5, [0, 0, 1, 1], need=[1, 3, 1, 1, 1])
     assert lp_module.instance(short.candidates, short, none).goal == 3
 
@@ -373,7 +392,7 @@ def test_the_fewest_masts_then_a_plan_on_them():
     sites, plan = steps(go(problem, problem.candidates, inst, None, None, False))[0]
     assert sites.bound == 1 and plan is None
     # Asked to stop (here before it starts): no plan on the sites.
-    stop = lp_module.threading.Event()
+    stop = threading.Event()
     stop.set()
     assert steps(go(problem, problem.candidates, inst, None, stop, True))[0][1] is None
     # Only the LP over sites: no set of sites of its own, the plan on the LP's.
@@ -408,8 +427,8 @@ def _bound_run(problem, plan=False):
 
 
 def test_prove_bound_reports_the_greedy_plan_and_the_lp_as_it_rises():
-    """GREEDY_TRAP on three sites: greedy's 3 sensors (at 3 a mast, 1 a sensor: 12)
-    against an LP of 2 sensors and 2 masts."""
+    """GREEDY_TRAP on three sites: greedy's 3 sensors against an LP of 2 sensors and
+    2 masts."""
     problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="sensors")
     (bound, lp, on_sites, greedy), reports = _bound_run(problem)
     assert sorted(greedy.chosen) == [0, 1, 2] and on_sites is None
@@ -447,25 +466,18 @@ def test_prove_bound_splits_a_large_target_and_runs_the_masts_lp_alone(monkeypat
     """With parts of at most 4 points, the 7 points are solved in 2 parts; the fewest
     masts then get their LP alone unless the masts are the objective."""
     monkeypatch.setattr(lp_module, "PART_POINTS", 4)
-    milps = []
-    site_cover = lp_module.site_cover
-
-    def spy(inst, site_of, n_sites, deadline, stop, milp, standing):
-        milps.append(milp)
-        return (yield from site_cover(inst, site_of, n_sites, deadline, stop, milp, standing))
-
-    monkeypatch.setattr(lp_module, "site_cover", spy)
+    calls = spy(monkeypatch, "site_cover")
     for objective in ("sensors", "masts"):
         problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective=objective)
         problem.grid.target_xy = np.array([(float(n), 0.0) for n in range(7)])
         (bound, lp, *_), _ = _bound_run(problem)
         assert lp.parts == 2 and bound.sensors == 2 and bound.masts == 2
-    assert milps == [False, True]
+    assert [call["milp"] for call in calls["site_cover"]] == [False, True]
     problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="sensors")
     problem.grid.target_xy = np.zeros((7, 2))
     monkeypatch.setattr(lp_module, "PART_POINTS", 7)
     (bound, lp, *_), _ = _bound_run(problem)
-    assert lp.parts == 1 and milps[-1] is True
+    assert lp.parts == 1 and calls["site_cover"][-1]["milp"] is True
 
 
 def test_prove_and_plan_beats_greedy_and_reports_it():
@@ -565,25 +577,6 @@ def test_the_bound_for_another_plan_leaves_out_what_stands(existing, seen, senso
 
 
 # ---------------------------------------------------------------- what each solve is handed
-
-
-def spy(monkeypatch, *names):
-    """Wrap lp.py's ``names`` (functions it calls): each call's arguments by name, the
-    defaults filled in, and under "returned" what it returned, listed per name."""
-    calls = {name: [] for name in names}
-    for name in names:
-        real = getattr(lp_module, name)
-
-        def wrapper(*args, _real=real, _name=name, **kwargs):
-            bound = inspect.signature(_real).bind(*args, **kwargs)
-            bound.apply_defaults()
-            call = dict(bound.arguments)
-            calls[_name].append(call)
-            call["returned"] = _real(*args, **kwargs)
-            return call["returned"]
-
-        monkeypatch.setattr(lp_module, name, wrapper)
-    return calls
 
 
 def test_the_deadline_and_the_stop_reach_every_solve(monkeypatch):
