@@ -51,7 +51,9 @@ TESTS_FOR: dict[str, list[str]] = {
         "tests/core/test_lp.py",
         "tests/core/test_budget.py",
     ],
+    # test_evaluate_layout.py: heights, warnings and the ray limit on hand-made scenes.
     "autoscoop_blender/core/evaluate.py": [
+        "tests/core/test_evaluate_layout.py",
         "tests/core/test_layout_metrics.py",
         "tests/core/test_coverage_map.py",
     ],
@@ -272,9 +274,7 @@ def run_module(module: str, jobs: int, rev: str | None, only: list[str]) -> Scor
     print(f"== mutants of {module} (tests: {' '.join(TESTS_FOR[module])}) in {work}", flush=True)
     mutmut = [sys.executable, "-m", "mutmut"]
     env = dict(os.environ, PYTHONDONTWRITEBYTECODE="1")
-    code = subprocess.run(
-        [*mutmut, "run", "--max-children", str(jobs), *only], cwd=work, env=env
-    )
+    code = subprocess.run([*mutmut, "run", "--max-children", str(jobs), *only], cwd=work, env=env)
     if code.returncode != 0:
         print(f"error: mutmut failed on {module} (exit {code.returncode})", file=sys.stderr)
         return None

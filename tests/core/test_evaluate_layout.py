@@ -5,14 +5,17 @@ threshold override, what is seen beside what is covered."""
 from dataclasses import replace
 
 import numpy as np
+import pytest
 import shapely
 
+from autoscoop_blender.core.errors import InputError
 from autoscoop_blender.core.evaluate import evaluate_layout, resolve_model
 from autoscoop_blender.core.geom.raycast import BoxCaster
 from autoscoop_blender.core.model.scene import Area
 from autoscoop_blender.core.model.sensors import SensorSpec
 from autoscoop_blender.core.settings import CoverageSettings
 from tests.core.flat import down_camera, flat_scene
+from tests.core.test_sites import box, plane, scene_of
 
 DOWN = down_camera(20.0)
 BOX = ((30.0, -2.0, 0.0), (34.0, 2.0, 3.0))  # a 3 m high hut, 4 m square
@@ -72,6 +75,16 @@ def test_the_warnings_name_each_sensor_and_its_problem():
     assert _run(specs[:1], method="pointcloud", oversample=1).warnings == ()
 
 
+def test_a_footprint_past_the_areas_edge_is_whole():
+    """A sensor 2 m inside the target's northern edge (y = 20), 10 m high, straight
+    down: its 11.55 m square holds 12 x 12 cell centres, 4 rows of them past the edge
+    (y 20.5 .. 23.5), on ground the grid keeps within the sensors' reach. It covers the
+    other 12 x 8."""
+    res = _run([SensorSpec(DOWN, 0.0, 18.0, 10.0, 90.0, 0.0)])
+    assert res.sensors[0].footprint_m2 == 144.0
+    assert res.sensors[0].covered_target_m2 == 96.0
+
+
 def test_the_threshold_override_and_what_is_seen_beside_what_is_covered():
     """The straight-down camera's density is a uniform 30,720 / (4 tan^2 30 deg h^2):
     230.4 points/m^2 at 10 m high. Asked for 231 it covers nothing and still sees its
@@ -88,3 +101,64 @@ def test_the_threshold_override_and_what_is_seen_beside_what_is_covered():
     # (not a division by zero).
     assert res.metrics["reference_footprint_m2"] == 0.0
     assert res.metrics["relative_sensor_coverage"] is None
+
+
+HUT = ((-16.5, -2.5, 5.0), (-13.5, 1.5, 8.0))  # 3 m x 4 m, 3 m high on ground at 5 m
+
+
+def test_each_warning_names_its_sensor_on_raised_ground():
+    """Terrain at z = 5 m, a hut in the sensor area (x -20 .. -4), world z over an
+    origin at 100 m. Sensor 1 (z = 112: 7 m over the ground) is fine and looks
+    straight down: its footprint is the square 2 x 7 tan 30 deg = 8.08 m on a side
+    under it, counted here on the grid's own points (1 m apart). Sensor 2 stands 0.1 m north of
+    the hut (within a mast's 0.25 m foot of it); sensor 3 stands 1 m below the hut's
+    roof, inside it, and sees nothing. Sensor 3's 90 deg model is not sensor 1's."""
+    scene = scene_of(
+        {"Terrain": [plane(-40, -30, 40, 30, z=lambda x, y: 5.0)], "Hut": [box(*HUT)]},
+        sensors=((-20.0, -10.0, -4.0, 10.0),),
+    )
+    target = (Area("Target", shapely.box(-30, -10, 10, 10)),)
+    scene = replace(scene, targets=target, origin=np.array([0.0, 0.0, 100.0]))
+    wide = replace(DOWN, h_fov_deg=90.0, v_fov_deg=90.0)
+    specs = [
+        SensorSpec(DOWN, -8.0, 0.0, None, 90.0, 0.0, z=112.0),
+        SensorSpec(DOWN, -15.0, 1.6, 6.0, 90.0, 0.0),
+        SensorSpec(wide, -15.0, 0.0, -1.0, 90.0, 0.0),
+    ]
+    res = evaluate_layout(scene, BoxCaster([HUT], ground_z=5.0), specs, CoverageSettings())
+    rule = "(masts stand on the ground; a roof or gantry with autoscoop_mount = True may carry one)"
+    assert res.warnings == (
+        f"sensor 2 at (-15, 1.6) stands where no mast may: on or beside Hut {rule}",
+        f"sensor 3 at (-15, 0) stands where no mast may: on or beside Hut {rule}",
+        "sensor 3 at (-15, 0) stands inside an occluder (or under the ground): it sees nothing",
+    )
+    assert [s.height_m for s in res.sensors] == [7.0, 6.0, -1.0]
+    assert res.sensors[2].covered_target_m2 == 0.0
+    half = 7.0 * np.tan(np.radians(30.0))
+    xy = res.points[:, :2]  # world = local in plan here
+    under = (np.abs(xy[:, 0] + 8.0) <= half) & (np.abs(xy[:, 1]) <= half)
+    assert under.sum() == 64  # 8 x 8 cell centres on half metres
+    assert res.sensors[0].covered_target_m2 == pytest.approx(under.sum() * 1.0)
+
+
+def test_a_pointcloud_pose_over_the_ray_limit_is_refused_before_any_ray():
+    """A 1,000 x 1,000-ray camera (60 deg: 1.05 mrad between rays) with 20 m range.
+    Given --oversample 3 it casts 9 M rays a pose, over the 2 M limit; the targeted
+    method casts no pattern and goes ahead. Left to choose, at a 2 cm grid it takes
+    ceil(1.05e-3 x 20 / 0.02) = 2 (4.0 M rays again) and at 2.5 cm 1 (1.0 M), which the
+    refusal offers."""
+    dense = replace(DOWN, rays_h=1000, rays_v=1000)
+    spec = SensorSpec(dense, 0.0, 0.0, 10.0, 90.0, 0.0)
+    with pytest.raises(InputError) as err:
+        _run([spec], method="pointcloud", oversample=3)
+    assert str(err.value).startswith("method pointcloud at grid_m = 1 casts 9.0 M rays a pose")
+    assert "the limit is 2.0 M rays a pose" in str(err.value)
+    assert _run([spec], oversample=3).n_covered.sum() > 0
+    with pytest.raises(InputError) as err:
+        evaluate_layout(
+            _scene(), BoxCaster([BOX], ground_z=0.0), [spec],
+            CoverageSettings(grid_m=0.02, method="pointcloud"),
+        )  # fmt: skip
+    msg = str(err.value)
+    assert msg.startswith("method pointcloud at grid_m = 0.02 casts 4.0 M rays a pose")
+    assert "raise grid_m (--grid; 0.025 needs " in msg
