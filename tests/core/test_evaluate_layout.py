@@ -1,6 +1,7 @@
-"""A given layout's coverage (``core/evaluate.py``) on hand-made flat scenes: each
-sensor's height from what its spec gives, each warning with the sensor it names, the
-threshold override, what is seen beside what is covered."""
+"""A given layout's coverage (``core/evaluate.py``) on hand-made scenes: each sensor's
+height from what its spec gives, each warning with the sensor it names, a footprint
+past the areas' edge, the threshold override, what is seen beside what is covered, and
+the pointcloud ray limit checked before any ray."""
 
 from dataclasses import replace
 
@@ -110,9 +111,9 @@ def test_each_warning_names_its_sensor_on_raised_ground():
     """Terrain at z = 5 m, a hut in the sensor area (x -20 .. -4), world z over an
     origin at 100 m. Sensor 1 (z = 112: 7 m over the ground) is fine and looks
     straight down: its footprint is the square 2 x 7 tan 30 deg = 8.08 m on a side
-    under it, counted here on the grid's own points (1 m apart). Sensor 2 stands 0.1 m north of
-    the hut (within a mast's 0.25 m foot of it); sensor 3 stands 1 m below the hut's
-    roof, inside it, and sees nothing. Sensor 3's 90 deg model is not sensor 1's."""
+    under it, counted here on the grid's own points (1 m apart). Sensor 2 stands 0.1 m
+    north of the hut (within a mast's 0.25 m foot of it); sensor 3 stands 1 m below the
+    hut's roof, inside it, and sees nothing. Sensor 3's 90 deg model is not sensor 1's."""
     scene = scene_of(
         {"Terrain": [plane(-40, -30, 40, 30, z=lambda x, y: 5.0)], "Hut": [box(*HUT)]},
         sensors=((-20.0, -10.0, -4.0, 10.0),),
@@ -144,7 +145,8 @@ def test_each_warning_names_its_sensor_on_raised_ground():
 def test_a_pointcloud_pose_over_the_ray_limit_is_refused_before_any_ray():
     """A 1,000 x 1,000-ray camera (60 deg: 1.05 mrad between rays) with 20 m range.
     Given --oversample 3 it casts 9 M rays a pose, over the 2 M limit; the targeted
-    method casts no pattern and goes ahead. Left to choose, at a 2 cm grid it takes
+    method casts no pattern and goes ahead (the 12 x 12 cells of its square at 10 m,
+    as in the threshold test). Left to choose, at a 2 cm grid it takes
     ceil(1.05e-3 x 20 / 0.02) = 2 (4.0 M rays again) and at 2.5 cm 1 (1.0 M), which the
     refusal offers."""
     dense = replace(DOWN, rays_h=1000, rays_v=1000)
@@ -153,7 +155,7 @@ def test_a_pointcloud_pose_over_the_ray_limit_is_refused_before_any_ray():
         _run([spec], method="pointcloud", oversample=3)
     assert str(err.value).startswith("method pointcloud at grid_m = 1 casts 9.0 M rays a pose")
     assert "the limit is 2.0 M rays a pose" in str(err.value)
-    assert _run([spec], oversample=3).n_covered.sum() > 0
+    assert _run([spec], oversample=3).n_covered.sum() == 144
     with pytest.raises(InputError) as err:
         evaluate_layout(
             _scene(), BoxCaster([BOX], ground_z=0.0), [spec],
