@@ -462,9 +462,7 @@ def estimate_run(
     # (reachability, candidates) and, for the ES, targets and the band beside them.
     cache_rows = int(positions * (fp.reach_m2 + fp.band_m2) / g**2)
     row_bytes = CACHE_ROW_BYTES + (CACHE_PIXEL_ROW_BYTES if model.resolution_px else 0)
-    cache = (
-        min(cache_rows * row_bytes, CACHE_GEOMETRY_BYTES) + cache_rows * CACHE_ANSWER_BYTES
-    )
+    cache = min(cache_rows * row_bytes, CACHE_GEOMETRY_BYTES) + cache_rows * CACHE_ANSWER_BYTES
     stages["cache"] = resident + cache
     uses_candidates = settings.optimizer in CANDIDATE_OPTIMIZERS or settings.bound
     nonzeros = 0

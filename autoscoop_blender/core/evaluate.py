@@ -14,6 +14,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..names import MOUNT_PROP
 from . import budget
 from .coverage.base import place
 from .coverage.evaluator import make_evaluator
@@ -21,10 +22,9 @@ from .coverage.pointcloud import auto_oversample
 from .geom.grid import GroundGrid
 from .geom.raycast import RayCaster, inside_solid
 from .masts import group_positions
-from ..names import MOUNT_PROP
 from .model.scene import SceneModel
-from .model.sites import site_blockers
 from .model.sensors import SensorModel, SensorSpec
+from .model.sites import site_blockers
 from .result import Provenance, Result, area_at, finish_layout
 from .settings import CoverageSettings
 

@@ -282,9 +282,7 @@ def finish_layout(
         if how.sensor_costs is not None:
             paid = sum(c for c, s in zip(how.sensor_costs, sensors) if not s.existing)
         # The bounds are on the new ones too: standing masts cost nothing there.
-        metrics.update(
-            objective_metrics(new_sensors, new_masts, how.settings, how.bound, paid)
-        )
+        metrics.update(objective_metrics(new_sensors, new_masts, how.settings, how.bound, paid))
         metrics.update(
             existing_sensors=len(sensors) - new_sensors, existing_masts=len(masts) - new_masts
         )

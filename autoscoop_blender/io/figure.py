@@ -253,9 +253,7 @@ def details(result: Result) -> str:
         per_sensor = f"{settings.sensor_cost:g} per sensor"
         if result.pack is not None:
             costs = result.pack.cost_of(settings.sensor_cost)
-            per_sensor = ", ".join(
-                f"{c:g} per {m.kind}" for m, c in zip(result.pack.models, costs)
-            )
+            per_sensor = ", ".join(f"{c:g} per {m.kind}" for m, c in zip(result.pack.models, costs))
         parts.append(f"cost = {settings.mast_cost:g} per mast + {per_sensor}")
     if len(result.points):
         parts.append(f"{result.cell_m:g} m target grid")

@@ -17,7 +17,6 @@ from pathlib import Path
 
 import bpy
 import numpy as np
-import shapely
 from mathutils import Vector
 from mathutils.bvhtree import BVHTree
 from numpy.typing import NDArray
@@ -25,8 +24,8 @@ from numpy.typing import NDArray
 from .. import names
 from ..core.errors import SceneContractError
 from ..core.model.scene import Area, SceneModel, area_from_rings, choose_origin
-from ..core.model.sites import mast_sites
 from ..core.model.sensors import DORI_PX_PER_M, KINDS, MAX_COORD_M, MAX_RANGE_M
+from ..core.model.sites import mast_sites
 from ..io.georef import check_crs, check_offset
 
 F64 = NDArray[np.float64]

@@ -56,6 +56,7 @@ def site_scene():
 
 def _ground_by_hand(x, y):
     """Height a mast at (x, y) stands on, from the boxes above."""
+
     def inside(lo, hi):
         return lo[0] < x < hi[0] and lo[1] < y < hi[1]
 

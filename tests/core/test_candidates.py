@@ -113,8 +113,6 @@ def test_the_limit_is_the_most_nonzeros_allowed(monkeypatch):
     assert "through the greedy optimizer: raise grid_m" in text
     # The limit is the one for the problem's optimizer (greedy here).
     asked = []
-    monkeypatch.setattr(
-        budget, "nonzero_limit", lambda optimizer: asked.append(optimizer) or total
-    )
+    monkeypatch.setattr(budget, "nonzero_limit", lambda optimizer: asked.append(optimizer) or total)
     assert built(p)[0].matrix.nnz == total
     assert asked == ["greedy"]

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import shapely
 
+from autoscoop_blender.core.candidates import CandidateSet
 from autoscoop_blender.core.coverage.base import place
 from autoscoop_blender.core.coverage.targeted import TargetedEvaluator
 from autoscoop_blender.core.errors import InputError
@@ -17,7 +18,6 @@ from autoscoop_blender.core.evaluate import evaluate_layout
 from autoscoop_blender.core.geom.grid import GroundGrid
 from autoscoop_blender.core.geom.raycast import BoxCaster
 from autoscoop_blender.core.model.scene import Area, SceneModel
-from autoscoop_blender.core.candidates import CandidateSet
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA, SensorPose, SensorSpec
 from autoscoop_blender.core.optimize.base import Solution, fix_candidate
 from autoscoop_blender.core.optimize.bound import cover_lp, site_cover

@@ -69,9 +69,7 @@ def scene_of(objects, sensors=(SENSOR,), mounts=(), overhangs=(), no_mast=()):
         faces=np.concatenate(faces).astype(np.int32),
         occluders=tuple(objects),
         targets=(Area("Target", shapely.box(0, -25, 50, 25)),),
-        sensor_areas=tuple(
-            Area(f"SensorArea_{k}", shapely.box(*b)) for k, b in enumerate(sensors)
-        ),
+        sensor_areas=tuple(Area(f"SensorArea_{k}", shapely.box(*b)) for k, b in enumerate(sensors)),
         ground_faces=np.array(ground, dtype=bool),
         no_mast=tuple(Area(n, shapely.box(*b)) for n, b in no_mast),
         face_object=np.array(owner, dtype=np.int32),

@@ -195,9 +195,7 @@ def complete(
     return cover
 
 
-def close_sites(
-    cover: Cover, site_of: I64, mast_cost: MastCost, sensor_cost: SensorCost
-) -> Cover:
+def close_sites(cover: Cover, site_of: I64, mast_cost: MastCost, sensor_cost: SensorCost) -> Cover:
     """Close masts while that lowers the cost (``mast_cost`` per site in use plus
     ``sensor_cost`` per candidate): for each site in use, the one with the fewest
     candidates first, drop its candidates, cover the goal again from the candidates

@@ -123,7 +123,6 @@ def instance(
     )
 
 
-
 def bound_scope(cands: CandidateSet, problem: Problem) -> str:
     """Over which plans the bound holds, in words."""
     ang = cands.angles[0]
@@ -421,9 +420,7 @@ def _pool(lp: LPSolution) -> I64:
     return np.union1d(lp.columns, np.flatnonzero(lp.reduced <= POOL_REDUCED_COST))
 
 
-def _lp_plans(
-    inst: CoverInstance, lp: LPSolution, price: SensorCost = 1.0
-) -> Iterator[list[int]]:
+def _lp_plans(inst: CoverInstance, lp: LPSolution, price: SensorCost = 1.0) -> Iterator[list[int]]:
     """Plans rounded from the LP at each threshold, completed (per ``price``, one
     sensor's cost) and improved."""
     pool = _pool(lp)
