@@ -325,6 +325,29 @@ def test_plan_bound_with_a_price_per_model(monkeypatch):
     assert lp_module._plan_bound(_lp(0.0), sites, free.candidates, free).sensors == 0
 
 
+def test_the_masts_bound_counts_the_fewest_sensors_at_the_cap(monkeypatch):
+    """An LP of 4.6 proves 5 sensors. At 2 a mast they need 3 masts where the
+    fewest-masts MILP proved 1; a standing mast takes 2 of them (2 new masts); at 4
+    a mast 2; with 3 standing, the MILP's 1 stands. The cost bound at 3 a mast is
+    3 x 3 + 5 = 14."""
+    monkeypatch.setattr(lp_module, "mast_aware_bound", lambda *args: 0.0)
+    sites = SiteSolution(1, np.array([0]), np.zeros(0, np.int64))
+
+    def masts(cap, standing=()):
+        flags = [s in standing for s in range(4)]
+        problem = HandLP([[0]] * 4, 1, [0, 1, 2, 3], standing=flags, max_sensors_per_mast=cap)
+        return lp_module._plan_bound(_lp(4.6), sites, problem.candidates, problem)
+
+    got = masts(2)
+    assert (got.sensors, got.masts) == (5, 3)
+    assert got.objective("cost", 3.0, 1.0) == 14.0 and got.objective("masts", 3.0, 1.0) == 3
+    assert masts(2, standing=(0,)).masts == 2
+    assert masts(4).masts == 2
+    assert masts(2, standing=(0, 1, 2)).masts == 1
+    assert [lp_module.capped_masts(n, 4, 0) for n in (0, 1, 4, 5, 8, 9)] == [0, 1, 1, 2, 2, 3]
+    assert lp_module.capped_masts(9, 4, 2) == 1 and lp_module.capped_masts(9, 4, 3) == 0
+
+
 # ---------------------------------------------------------------- plans from the LP
 
 

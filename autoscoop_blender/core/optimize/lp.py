@@ -384,6 +384,20 @@ def bound_only(problem: Problem, solution: Solution) -> Generator[Progress, None
     return bound
 
 
+def capped_masts(sensors: int, cap: int, standing: int) -> int:
+    """The fewest new masts that can carry ``sensors`` new sensors at ``cap`` a mast,
+    when ``standing`` masts stand already, each with room for ``cap`` (the sensors
+    on them before the plan do not count against it)."""
+    return max(0, math.ceil((sensors - cap * standing) / cap))
+
+
+def _masts_bound(sites: SiteSolution, sensors: int, problem: Problem) -> int:
+    """The fewest new masts: the fewest-masts MILP's (which does not know of the
+    sensors-per-mast cap), or more when the fewest sensors cannot fit on that many."""
+    standing = int(np.count_nonzero(problem.space.standing))
+    return max(sites.bound, capped_masts(sensors, problem.settings.max_sensors_per_mast, standing))
+
+
 def _plan_bound(
     lp: LPSolution, sites: SiteSolution, cands: CandidateSet, problem: Problem
 ) -> PlanBound:
@@ -391,22 +405,24 @@ def _plan_bound(
     price = sensor_price(problem, cands) if s.objective == "cost" else s.sensor_cost
     per_site = _per_site(problem, s.mast_cost)
     if np.ndim(price) == 0:
+        sensors = lp.integer_bound()
         return PlanBound(
-            sensors=lp.integer_bound(),
-            masts=sites.bound,
+            sensors=sensors,
+            masts=_masts_bound(sites, sensors, problem),
             lp=lp.bound,
             scope=bound_scope(cands, problem),
             rounds=lp.rounds,
             cost_lp=mast_aware_bound(lp, cands.position, per_site, float(price)),
-            sensor_cost_lp=float(price) * lp.integer_bound(),
+            sensor_cost_lp=float(price) * sensors,
         )
     # The LP priced each candidate at its model's cost: it bounds the sensors' cost,
     # and the count through the dearest model (no sensor costs more).
     price = np.asarray(price)
     dearest = float(price.max())
+    sensors = max(0, math.ceil(lp.bound / dearest - 1e-6)) if dearest > 0 else 0
     return PlanBound(
-        sensors=max(0, math.ceil(lp.bound / dearest - 1e-6)) if dearest > 0 else 0,
-        masts=sites.bound,
+        sensors=sensors,
+        masts=_masts_bound(sites, sensors, problem),
         lp=lp.bound,
         scope=bound_scope(cands, problem),
         rounds=lp.rounds,
