@@ -353,12 +353,8 @@ def layout_metrics(
     footprints = [c.footprint_m2 or 0.0 for c in coverages]
     # A model whose threshold no flat ground meets has no reference footprint: its
     # sensors have no ratio (all of them: none).
-    rated = [(f, r) for f, r in zip(footprints, refs) if r > 0]
-    relative: float | None = None
-    if rated and len(set(refs)) == 1:
-        relative = round(float(np.mean(footprints)) / refs[0], 4)
-    elif rated:
-        relative = round(float(np.mean([f / r for f, r in rated])), 4)
+    ratios = [f / r for f, r in zip(footprints, refs) if r > 0]
+    relative = round(float(np.mean(ratios)), 4) if ratios else None
     k = np.ones(len(n_covered), dtype=np.int32) if need is None else need
     covered = int(np.count_nonzero(n_covered >= k))
     return {
