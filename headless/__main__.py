@@ -7,8 +7,6 @@ if __package__ in (None, ""):
     # Run as a script (inside a Blender binary): make the repository importable.
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from headless.cli import main  # noqa: E402
-
 
 def _arguments() -> list[str]:
     """Our arguments: everything after ``--`` when Blender passed its own first."""
@@ -16,5 +14,13 @@ def _arguments() -> list[str]:
     return argv[argv.index("--") + 1 :] if "--" in argv else argv
 
 
+# (Worker processes import this module again, as ``__mp_main__``: they run none of it.)
 if __name__ == "__main__":
+    # First of all: from here on Ctrl-C and SIGTERM end the run cleanly.
+    from headless import interrupts
+
+    interrupts.install()
+
+    from headless.cli import main
+
     sys.exit(main(_arguments()))

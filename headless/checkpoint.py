@@ -13,11 +13,14 @@ dropped on resume. Any other damage stops the resume with an error naming the li
 leaves the file exactly as it was; ``--resume --repair`` keeps the records before the
 first damaged line (the whole file is kept beside it as ``checkpoint.jsonl.damaged``).
 The file is created or replaced only when the first sensor is fixed, so a command that
-fails before that (bad input) never touches an earlier checkpoint.
+fails before that (bad input) never touches an earlier checkpoint. It is never opened
+through a symbolic link (``O_NOFOLLOW``): a link named checkpoint.jsonl is refused on
+resume, and replaced, not written through, by a fresh start.
 """
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import json
 import os
@@ -31,8 +34,19 @@ from autoscoop_blender.core.errors import InputError
 from autoscoop_blender.core.model.scene import SceneModel
 from autoscoop_blender.core.model.sensors import SensorModel, SensorPack, SensorSpec
 from autoscoop_blender.core.settings import OptimizeSettings, from_mapping
+from headless.files import write_files
 
 NAME = "checkpoint.jsonl"
+
+# Not on Windows, where a file opened by name is never a link's target by surprise.
+_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
+
+
+def _why(e: OSError) -> str:
+    """An open's failure in words (ELOOP: the name is a symbolic link)."""
+    if e.errno == errno.ELOOP:
+        return "it is a symbolic link, which AutoSCOOP does not follow"
+    return e.strerror or str(e)
 
 
 def scene_fingerprint(scene: SceneModel) -> str:
@@ -144,10 +158,39 @@ class Checkpoint:
         self._valid_bytes: int | None = None  # resume: where the complete lines end
 
     def start(self) -> None:
-        """Begin a fresh checkpoint (any old one is replaced)."""
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.path.write_text(encode_line(self.header), encoding="utf-8")
+        """Begin a fresh checkpoint (any old one, or a link of that name, is replaced)."""
+        write_files({self.path: encode_line(self.header)})
         self._started = True
+
+    def _read(self) -> bytes:
+        """The file's bytes, not through a link; InputError saying why not."""
+        try:
+            fd = os.open(self.path, os.O_RDONLY | _NOFOLLOW)
+        except FileNotFoundError:
+            raise InputError(f"{self.path}: no checkpoint to resume from") from None
+        except OSError as e:
+            raise InputError(f"{self.path}: cannot read it ({_why(e)})") from None
+        with os.fdopen(fd, "rb") as f:
+            try:
+                return f.read()
+            except IsADirectoryError:
+                raise InputError(f"{self.path}: is a folder, not a checkpoint") from None
+
+    def kept_text(self, optimizer: str) -> str:
+        """What an interruption keeps, as the file stands now (one line's words)."""
+        if not self._started:
+            earlier = " (the checkpoint there is as it was)" if os.path.lexists(self.path) else ""
+            later = " (lp fixes its sensors once its plan is done)" if optimizer == "lp" else ""
+            return f"nothing kept: no sensor had been fixed yet{later}{earlier}"
+        try:
+            lines = self._read().count(b"\n")
+        except InputError as e:
+            return f"the checkpoint cannot be read back ({e})"
+        fixed = max(lines - 1, 0)
+        return (
+            f"{fixed} sensor(s) kept in {self.path}; the same command with --resume goes "
+            "on from them"
+        )
 
     def resume(self, repair: bool = False) -> list[dict[str, Any]]:
         """The records of an earlier run with the same header; InputError otherwise.
@@ -155,9 +198,7 @@ class Checkpoint:
         Reads only: the file changes when the next record is appended (a cut-short last
         line is dropped then), or here with ``repair`` (see the module docstring).
         """
-        if not self.path.is_file():
-            raise InputError(f"{self.path}: no checkpoint to resume from")
-        raw = self.path.read_bytes()
+        raw = self._read()
         lines = raw.splitlines(keepends=True)
         if lines and not lines[-1].endswith(b"\n"):
             lines.pop()  # cut short by a crash while it was written
@@ -213,15 +254,19 @@ class Checkpoint:
     def _keep_prefix(self, raw: bytes, lines: list[bytes]) -> None:
         """Keep ``lines`` only, the whole file saved beside it first."""
         damaged = self.path.with_name(NAME + ".damaged")
-        damaged.write_bytes(raw)
-        self.path.write_bytes(b"".join(lines))
+        write_files({damaged: raw})
+        write_files({self.path: b"".join(lines)})
 
     def append(self, record: dict[str, Any]) -> None:
         """Add one fixed sensor's record (the file is started or trimmed first)."""
         if not self._started:
             self.start()
         line = encode_line(record)
-        with self.path.open("r+b") as f:
+        try:
+            fd = os.open(self.path, os.O_RDWR | _NOFOLLOW)
+        except OSError as e:
+            raise InputError(f"{self.path}: cannot write it ({_why(e)})") from None
+        with os.fdopen(fd, "r+b") as f:
             if self._valid_bytes is not None:
                 f.truncate(self._valid_bytes)  # drop a line a crash cut short
                 self._valid_bytes = None

@@ -14,14 +14,13 @@ from __future__ import annotations
 
 import argparse
 import logging
-import signal
 import sys
-import threading
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from autoscoop_blender.core.settings import CoverageSettings, OptimizeSettings, settings_schema
+from headless import interrupts
 from headless.paths import SAMPLES
 
 
@@ -68,6 +67,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_knob_options(cov, CoverageSettings)
     cov.add_argument("--out", required=True, help="result JSON")
     cov.add_argument("--points-csv", help="per-target-point CSV")
+    _overwrite_option(cov, "--out and --points-csv")
 
     opt = sub.add_parser("optimize", help="place sensors with the evolution strategy")
     opt.add_argument(
@@ -87,6 +87,7 @@ def build_parser() -> argparse.ArgumentParser:
         "given, counted toward coverage, at no cost; the plan adds to them",
     )
     opt.add_argument("--resume", action="store_true", help="go on from the checkpoint")
+    _overwrite_option(opt, "an earlier run's files in --out-dir (its checkpoint too)")
     opt.add_argument(
         "--repair",
         action="store_true",
@@ -111,6 +112,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     imp.add_argument("file", help="OpenDRIVE file (.xodr)")
     imp.add_argument("--out", required=True, help="the .blend to write")
+    _overwrite_option(imp, "--out")
     imp.add_argument(
         "--lanes",
         default="driving",
@@ -191,22 +193,23 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _overwrite_option(parser: argparse.ArgumentParser, what: str) -> None:
+    parser.add_argument(
+        "--overwrite",
+        action="store_true",
+        help=f"replace {what} if it exists (without it, an existing output is refused; an "
+        "output is never one of the inputs)",
+    )
+
+
 def _floats(text: str) -> tuple[float, ...]:
     """``0,0.1,0.4`` -> (0.0, 0.1, 0.4); ``''`` -> ()."""
     return tuple(float(t) for t in text.split(",") if t.strip())
 
 
-def _terminated(signum: int, frame: object) -> None:
-    """SIGTERM (``kill``, ``timeout``, a batch system's end of job) ends a run as Ctrl-C
-    does: what it finished is kept, its workers are shut down, exit code 130."""
-    raise KeyboardInterrupt
-
-
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s: %(message)s")
-    main_thread = threading.current_thread() is threading.main_thread()
-    before = signal.signal(signal.SIGTERM, _terminated) if main_thread else None
     handlers: dict[str, Callable[[argparse.Namespace], int]] = {
         "coverage": _coverage,
         "optimize": _optimize,
@@ -218,16 +221,27 @@ def main(argv: list[str] | None = None) -> int:
     from autoscoop_blender.core.errors import AutoscoopError
 
     try:
+        if args.command in ("coverage", "optimize", "import-xodr"):
+            with interrupts.held():  # bpy runs Blender's start-up scripts (``interrupts``)
+                import bpy  # noqa: F401
         return handlers[args.command](args)
     except AutoscoopError as e:
+        if interrupts.signalled():  # a fault of the interrupted work, not the user's
+            return _interrupted()
         print(f"error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return 130
-    finally:
-        if before is not None:  # an embedding interpreter (Blender) gets its own back
-            signal.signal(signal.SIGTERM, before)
+        return _interrupted()
+    except Exception:
+        if interrupts.signalled():  # e.g. a worker ended by the same Ctrl-C
+            return _interrupted()
+        raise
+
+
+def _interrupted() -> int:
+    """The last line says what was kept (``interrupts.keep``); exit code 130."""
+    interrupts.last_line()
+    return interrupts.EXIT_INTERRUPTED
 
 
 def _coverage(args: argparse.Namespace) -> int:

@@ -5,16 +5,18 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import tempfile
 import time
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from autoscoop_blender.core.errors import AutoscoopError, InputError
 from autoscoop_blender.core.evaluate import evaluate_layout
+from autoscoop_blender.core.model.scene import SceneModel
 from autoscoop_blender.core.model.sensors import SensorPack
-from autoscoop_blender.core.result import Result
+from autoscoop_blender.core.result import Result, area_at
 from autoscoop_blender.core.run import Run
 from autoscoop_blender.core.settings import CoverageSettings, OptimizeSettings, flag_values
 from autoscoop_blender.io.config import load_config
@@ -27,9 +29,20 @@ from autoscoop_blender.io.reports import (
     result_dict,
     sensors_csv,
 )
-from autoscoop_blender.io.sensor_file import read_existing, read_sensors
+from autoscoop_blender.io.sensor_file import Standing, read_existing, read_sensors
+from headless import interrupts
+from headless.checkpoint import NAME as CHECKPOINT_NAME
 from headless.checkpoint import Checkpoint, checkpoint_header
-from headless.files import csv_text, json_text, load_scene, quiet_fds, write_files
+from headless.files import (
+    blend_bytes,
+    check_outputs,
+    csv_text,
+    json_text,
+    load_scene,
+    quiet_fds,
+    write_files,
+)
+from headless.lock import NAME as LOCK_NAME
 from headless.lock import OutDirLock
 from headless.paths import SAMPLES
 from headless.progress import ProgressBar
@@ -38,8 +51,12 @@ from headless.progress import ProgressBar
 def coverage(args: argparse.Namespace) -> int:
     """``coverage``: evaluate a sensors file on a scene, write OUT.json (+ CSV)."""
     settings = CoverageSettings(**flag_values(CoverageSettings, vars(args))).validated()
-    if args.points_csv and Path(args.points_csv).resolve() == Path(args.out).resolve():
-        raise InputError(f"{args.out}: given as both --out and --points-csv; name two files")
+    outputs = {Path(args.out): "--out"}
+    if args.points_csv:
+        outputs[Path(args.points_csv)] = "--points-csv"
+    inputs = {Path(args.sensors): "the sensors file (--sensors)"}
+    inputs.update(scene_input(args.scene))
+    check_outputs(outputs, inputs, args.overwrite)
     specs = read_sensors(args.sensors)
     scene, make_caster = load_scene(args.scene, max(s.model.range_m for s in specs))
     result = evaluate_layout(scene, make_caster(), specs, settings)
@@ -48,10 +65,10 @@ def coverage(args: argparse.Namespace) -> int:
     for e in result.excluded:
         print(f"note: {e.text()}", file=sys.stderr)
 
-    outputs: dict[Path, str | bytes] = {Path(args.out): json_text(coverage_dict(result))}
+    files: dict[Path, str | bytes] = {Path(args.out): json_text(coverage_dict(result))}
     if args.points_csv:
-        outputs[Path(args.points_csv)] = csv_text(POINTS_HEADER, point_rows(result))
-    write_files(outputs)
+        files[Path(args.points_csv)] = csv_text(POINTS_HEADER, point_rows(result))
+    write_files(files)
     m = result.metrics
     print(
         f"coverage {m['coverage_fraction']:.2%} ({m['covered_m2']:.0f} of "
@@ -85,15 +102,20 @@ def optimize(args: argparse.Namespace) -> int:
     out_dir = Path(args.out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"{out_dir}: exists and is not a folder")
+    scene_path = args.scene or default_scene()
+    _check_out_dir(out_dir, args, scene_path)
 
-    existing, existing_masts = read_existing(args.existing) if args.existing else ([], [])
+    standing = read_existing(args.existing) if args.existing else Standing([], [])
+    existing, existing_masts = standing.sensors, standing.masts
     SensorPack.of(model).check_optimizer(settings.optimizer)
     reach = max(m.range_m for m in SensorPack.of(model).models)
-    scene, make_caster = load_scene(args.scene or default_scene(), reach)
+    scene, make_caster = load_scene(scene_path, reach)
     for w in scene.warnings:
         print(f"warning: {w}", file=sys.stderr)
     for e in scene.excluded:
         print(f"note: {e.text()}", file=sys.stderr)
+    for w in standing_warnings(scene, standing, args.existing):
+        print(f"warning: {w}", file=sys.stderr)
     with OutDirLock(out_dir) as lock:
         if lock.stale_pid is not None:
             print(
@@ -103,6 +125,7 @@ def optimize(args: argparse.Namespace) -> int:
         header = checkpoint_header(scene, model, settings, existing, existing_masts)
         checkpoint = Checkpoint(out_dir, header)
         resume = checkpoint.resume(repair=args.repair) if args.resume else []
+        interrupts.keep(lambda: checkpoint.kept_text(settings.optimizer))
         run = Run(
             scene, make_caster, model, settings, resume, on_fixed=checkpoint.append,
             workers=workers, existing=existing, existing_masts=existing_masts,
@@ -113,16 +136,9 @@ def optimize(args: argparse.Namespace) -> int:
         try:
             for progress in run.steps():
                 bar.update(progress)
-        except KeyboardInterrupt:
+        finally:  # interrupted too: no worker left, the bar's line ended
             run.close()
             bar.close()
-            print(
-                f"interrupted: {len(run.sensors)} sensor(s) kept in {checkpoint.path}; "
-                "run again with --resume to go on",
-                file=sys.stderr,
-            )
-            return 130
-        bar.close()
         result = run.result()
         write_results(result, out_dir, render=args.render)
     m = result.metrics
@@ -141,6 +157,85 @@ def optimize(args: argparse.Namespace) -> int:
         )
         return EXIT_SHORT_OF_GOAL
     return 0
+
+
+def standing_warnings(scene: SceneModel, standing: Standing, path: str) -> list[str]:
+    """Why ``--existing PATH`` may belong to another ground: a result.json planned for
+    other target areas (``SceneModel.targets_fingerprint``), sensors or masts that
+    stand outside every sensor area (``coverage`` warns of those too). They are still
+    counted as standing: an existing mast may stand where no new one may."""
+    out = []
+    theirs = standing.targets_fingerprint
+    if theirs is not None and theirs != scene.targets_fingerprint():
+        out.append(
+            f"--existing {path}: planned for other target areas than {scene.source}'s "
+            "(its targets_fingerprint differs): is it this ground's plan?"
+        )
+    parts = []
+    for what, xy in (
+        ("sensor", [(s.x, s.y) for s in standing.sensors]),
+        ("mast", list(standing.masts)),
+    ):
+        local = scene.to_local(np.array(xy, dtype=float).reshape(-1, 2))
+        outside = sum(area_at(scene, float(x), float(y)) is None for x, y in local)
+        if outside:
+            parts.append(f"{outside} of its {len(xy)} {what}(s)")
+    if parts:
+        out.append(
+            f"--existing {path}: {' and '.join(parts)} stand outside every sensor area of "
+            f"{scene.source}; they are counted as standing all the same"
+        )
+    return out
+
+
+RESULT_NAMES = (
+    "result.json",
+    "sensors.csv",
+    "coverage.png",
+    "result.blend",
+    "sensors_local.geojson",
+    "sensors.geojson",
+    "plan.gpkg",
+)
+"""What ``write_results`` writes (or, for the last two, removes) in the output folder;
+result_view.png too with ``--render``."""
+
+
+def _check_out_dir(out_dir: Path, args: argparse.Namespace, scene: str | None) -> None:
+    """``files.check_outputs`` for everything an optimize run may write in ``out_dir``:
+    the results, the checkpoint (which ``--resume`` goes on with), the lock."""
+    names = RESULT_NAMES + (("result_view.png",) if args.render else ())
+    outputs = {out_dir / name: "--out-dir" for name in names}
+    ckpt = out_dir / CHECKPOINT_NAME
+    outputs[ckpt] = "the checkpoint"
+    if args.repair:
+        outputs[ckpt.with_name(CHECKPOINT_NAME + ".damaged")] = "--repair"
+    outputs[out_dir / LOCK_NAME] = "the run's lock"
+    inputs = scene_input(scene)
+    for path, what in ((args.config, "--config"), (args.existing, "--existing")):
+        if path:
+            inputs[Path(path)] = f"the {what} file"
+    kept = [out_dir / LOCK_NAME] + ([ckpt] if args.resume else [])
+    for path in kept:  # opened in place, and never through a link (``O_NOFOLLOW``)
+        if path.is_symlink():
+            raise InputError(
+                f"{path}: is a symbolic link, which AutoSCOOP does not follow; remove it"
+            )
+    if not args.resume and not args.overwrite and os.path.lexists(ckpt):
+        raise InputError(
+            f"{ckpt}: an earlier run's checkpoint; --resume goes on from it, --overwrite "
+            "starts again, or choose another --out-dir"
+        )
+    check_outputs(outputs, inputs, args.overwrite, kept, "choose another --out-dir")
+
+
+def scene_input(path: str | None) -> dict[Path, str]:
+    """The scene file as an input for ``check_outputs``: the one given, else the one
+    Blender opened (none for the bundled sample, which is read only)."""
+    import bpy
+
+    given = path or bpy.data.filepath
+    return {Path(given): "the scene"} if given else {}
 
 
 def default_workers() -> int:
@@ -182,12 +277,7 @@ def write_results(result: Result, out_dir: Path, render: bool = False) -> None:
     if note:
         print(f"note: {note}", file=sys.stderr)
     spawn_results(bpy.context.scene, result)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=out_dir) as tmp:
-        blend = Path(tmp) / "result.blend"
-        with quiet_fds():  # Blender's "Info: Saved copy as ..." is not ours to print
-            bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True, compress=True)
-        files[out_dir / "result.blend"] = blend.read_bytes()
+    files[out_dir / "result.blend"] = blend_bytes()
     if render:
         files[out_dir / "result_view.png"] = render_view_png(bpy.context.scene)
     write_files(files)
@@ -208,7 +298,7 @@ def render_view_png(scene: Any) -> bytes:
 
     start = time.perf_counter()
     try:
-        with quiet_fds() as chatter:
+        with interrupts.held(), quiet_fds() as chatter:  # Blender renders (``interrupts``)
             png = render_view(scene)
     except RuntimeError as e:
         sys.stderr.write("".join(chatter))

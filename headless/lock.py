@@ -9,6 +9,7 @@ for the message a second run gets.
 
 from __future__ import annotations
 
+import errno
 import os
 import sys
 from pathlib import Path
@@ -18,6 +19,7 @@ from typing import IO
 from autoscoop_blender.core.errors import InputError
 
 NAME = ".autoscoop.lock"
+_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)  # (none on Windows)
 
 
 def _try_lock(f: IO[bytes]) -> bool:
@@ -49,9 +51,15 @@ class OutDirLock:
     def __enter__(self) -> OutDirLock:
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            f = open(self.path, "a+b")  # noqa: SIM115 (held open while locked)
         except OSError as e:
             raise InputError(f"{self.path.parent}: cannot write there ({e.strerror})") from None
+        try:
+            # Never through a link: the lock is truncated and written below.
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT | _NOFOLLOW, 0o666)
+        except OSError as e:
+            why = "a symbolic link, not followed" if e.errno == errno.ELOOP else e.strerror
+            raise InputError(f"{self.path}: cannot take the run's lock ({why})") from None
+        f = os.fdopen(fd, "r+b")
         f.seek(0)
         owner = f.read().decode("ascii", "replace").strip()
         if not _try_lock(f):

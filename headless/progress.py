@@ -12,6 +12,10 @@ class ProgressBar:
     """Redraws one status line at most every ``interval_s``; on a non-terminal
     stream it prints a line per fixed sensor instead."""
 
+    drawing = False
+    """Whether a bar is drawn, unfinished, on the terminal's last line (an
+    interruption's last line then starts on a line of its own)."""
+
     def __init__(self, stream=sys.stderr, interval_s: float = 0.2, width: int = 24) -> None:
         self.stream = stream
         self.tty = stream.isatty()
@@ -42,7 +46,9 @@ class ProgressBar:
             return
         self._last = now
         print("\r" + self._line(p), end="", file=self.stream, flush=True)
+        ProgressBar.drawing = True
 
     def close(self) -> None:
-        if self.tty:
+        if ProgressBar.drawing:
             print(file=self.stream, flush=True)
+            ProgressBar.drawing = False

@@ -106,6 +106,8 @@ class Result:
     sensors each point needs to count as covered (its k; None: 1); area_k: the target
     areas that set their own ``coverage_k``, (name, k). excluded: the parts of the
     sensor areas where no mast may stand, and why (``SceneModel.excluded``).
+    targets_fingerprint: which ground's targets these are
+    (``SceneModel.targets_fingerprint``).
     """
 
     sensors: tuple[SensorRecord, ...]
@@ -134,6 +136,7 @@ class Result:
     need: I32 | None = None
     area_k: tuple[tuple[str, int], ...] = ()
     excluded: tuple[Exclusion, ...] = ()
+    targets_fingerprint: str = ""
 
     @property
     def k_need(self) -> I32:
@@ -317,6 +320,7 @@ def finish_layout(
         need=need,
         area_k=tuple((a.name, int(a.coverage_k)) for a in scene.targets if a.coverage_k),
         excluded=scene.excluded,
+        targets_fingerprint=scene.targets_fingerprint(),
     )
 
 

@@ -66,6 +66,7 @@ def result_dict(result: Result, extra_versions: dict[str, str] | None = None) ->
     doc = {
         "schema": RESULT_SCHEMA,
         "scene": result.scene,
+        "targets_fingerprint": result.targets_fingerprint,
         "optimizer": settings.optimizer,
         "method": settings.method,
         "seed": settings.seed,

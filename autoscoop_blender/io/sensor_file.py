@@ -19,6 +19,7 @@ key is refused, naming the closest known one.
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -32,8 +33,8 @@ SENSOR_KEYS = ("x", "y", "height_m", "pitch_deg", "yaw_deg", "model")
 # A result.json (``reports.result_dict``) is a sensors file too: besides ``model`` and
 # ``sensors`` it carries these keys, and these in each sensor, which are not read.
 RESULT_TOP_KEYS = (
-    "schema", "scene", "optimizer", "method", "seed", "settings", "versions", "metrics",
-    "stop_reason", "uncovered", "no_mast_sites", "origin", "models",
+    "schema", "scene", "targets_fingerprint", "optimizer", "method", "seed", "settings",
+    "versions", "metrics", "stop_reason", "uncovered", "no_mast_sites", "origin", "models",
 )  # fmt: skip
 # Masts that stand already (``read_existing``); a result.json's carry more keys.
 MAST_KEYS = ("x", "y")
@@ -49,10 +50,21 @@ def read_sensors(path: str | Path) -> list[SensorSpec]:
     return parse_sensors(_load(p), p.name)
 
 
-def read_existing(path: str | Path) -> tuple[list[SensorSpec], list[tuple[float, float]]]:
-    """What stands already, from a sensors file or a result.json: its sensors (the
-    list may be empty) and its ``masts`` (world x, y: sites with free slots, each
-    ``{"x": .., "y": ..}``; a result.json's masts are where its sensors stand)."""
+@dataclass(frozen=True)
+class Standing:
+    """What a file says stands already: sensors (world metres; the list may be empty),
+    masts with free slots (world x, y) and, for a result.json, the fingerprint of the
+    targets it was planned for (``SceneModel.targets_fingerprint``; None: not given)."""
+
+    sensors: list[SensorSpec]
+    masts: list[tuple[float, float]]
+    targets_fingerprint: str | None = None
+
+
+def read_existing(path: str | Path) -> Standing:
+    """What stands already, from a sensors file or a result.json: its sensors and its
+    ``masts`` (each ``{"x": .., "y": ..}``; a result.json's masts are where its
+    sensors stand)."""
     p = Path(path)
     data = _load(p)
     specs = parse_sensors(data, p.name, allow_empty=True)
@@ -68,7 +80,8 @@ def read_existing(path: str | Path) -> tuple[list[SensorSpec], list[tuple[float,
         masts.append((_coordinate(item, "x", where), _coordinate(item, "y", where)))
     if not specs and not masts:
         raise InputError(f"{p.name}: neither 'sensors' nor 'masts' lists anything")
-    return specs, masts
+    fingerprint = data.get("targets_fingerprint")
+    return Standing(specs, masts, fingerprint if isinstance(fingerprint, str) else None)
 
 
 def _load(p: Path) -> Any:

@@ -11,6 +11,7 @@ ring inside another is a hole, a ring inside that an island again.
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass, field, replace
 from functools import reduce
@@ -104,6 +105,22 @@ class SceneModel:
     mounts: tuple[str, ...] = ()
     # What ``sites.mast_sites`` cut out of the sensor areas, and why.
     excluded: tuple[Exclusion, ...] = ()
+
+    def targets_fingerprint(self) -> str:
+        """16 hex digits that tell one ground's plan from another's: each target
+        area's name, plan area and world bounds, rounded (to 0.01 m^2 and 0.01 m) so
+        that the same areas read from the same file agree whatever local origin or
+        crop a run chose. Occluders and sensor areas do not count: a building added
+        or a band of mast sites widened leave what stands where it stood."""
+        h = hashlib.sha256()
+        ox, oy = (float(v) for v in self.origin[:2])
+        for area in sorted(self.targets, key=lambda a: a.name):
+            minx, miny, maxx, maxy = area.geometry.bounds
+            bounds = (minx + ox, miny + oy, maxx + ox, maxy + oy)
+            h.update(area.name.encode())
+            h.update(f"{area.geometry.area:.2f}".encode())
+            h.update(",".join(f"{v:.2f}" for v in bounds).encode())
+        return h.hexdigest()[:16]
 
     def cropped(self, reach_m: float) -> SceneModel:
         """The scene without occluders that no sight line can meet: faces whose nearest

@@ -70,6 +70,7 @@ def _die_with_parent() -> None:
 def _start(inputs: WorkerInputs, make_caster: Callable[[], RayCaster]) -> None:
     global _WORKER
     _die_with_parent()
+    _after_spawn()
     caster = make_caster()
     grid = GroundGrid.from_arrays(inputs.grid, caster)
     evaluator = make_evaluator(inputs.settings, grid, caster, inputs.settings.cache)
@@ -97,35 +98,49 @@ def _started() -> None:
     """A first task: it makes an executor spawn its process."""
 
 
+# Ctrl-C in a terminal goes to every process of the group, SIGTERM from ``timeout`` too.
+_INTERRUPTS = (signal.SIGINT, signal.SIGTERM)
+
+
 @contextmanager
-def _interrupts_held() -> Iterator[None]:
-    """Hold Ctrl-C and SIGTERM back until the block ends, then deliver them.
+def _spawning() -> Iterator[None]:
+    """Start worker processes in this block: they come up deaf to Ctrl-C and SIGTERM
+    until they have their start-up data (``_after_spawn``).
 
     A spawned process is sent its start-up data (the grid's arrays: megabytes) through
-    a pipe by the main thread; an interrupt in the middle of that write leaves the child
-    a truncated pickle, and a traceback on the user's terminal. Signals can only be
-    handled in the main thread: elsewhere this holds nothing.
+    a pipe by the main thread, which keeps the pipe's reading end open itself: a child
+    ended by an interrupt before it has read everything leaves that write blocked for
+    ever. So the interrupts are blocked in this thread while the children are made: a
+    child inherits the blocked mask through its exec, and the new interpreter leaves
+    it so. This process still gets them: another thread takes them (Python's C
+    handler only flags them for the main thread), or they wait, pending, for the end
+    of the block. Only POSIX can block signals: elsewhere this holds nothing.
     """
-    if threading.current_thread() is not threading.main_thread():
+    if not hasattr(signal, "pthread_sigmask"):
         yield
         return
-    caught: list[int] = []
-    kinds = (signal.SIGINT, signal.SIGTERM)
-    before = {k: signal.signal(k, lambda signum, frame: caught.append(signum)) for k in kinds}
+    signal.pthread_sigmask(signal.SIG_BLOCK, _INTERRUPTS)
     try:
         yield
     finally:
-        for k, handler in before.items():
-            signal.signal(k, handler)
-        for signum in caught[:1]:
-            signal.raise_signal(signum)
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, _INTERRUPTS)
+
+
+def _after_spawn() -> None:
+    """In a worker that has read its start-up data: Ctrl-C is ignored (the main
+    process decides, and ends the workers), SIGTERM ends it (the executor's own
+    clean-up terminates workers with it); then both are unblocked (``_spawning``)."""
+    if hasattr(signal, "pthread_sigmask"):
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, _INTERRUPTS)
 
 
 class WorkerPool:
     """``workers`` processes (spawned: a forked Blender is not safe) that score poses.
 
-    The processes are spawned here, with interrupts held (``_interrupts_held``); they
-    then load the grid and the caster while the main process goes on.
+    The processes are spawned here, deaf to interrupts (``_spawning``); they then load
+    the grid and the caster while the main process goes on.
     """
 
     def __init__(
@@ -139,7 +154,7 @@ class WorkerPool:
             for _ in range(workers)
         ]
         try:
-            with _interrupts_held():
+            with _spawning():
                 for executor in self.executors:
                     executor.submit(_started)
         except BaseException:  # interrupted: no process is left behind
@@ -159,5 +174,15 @@ class WorkerPool:
         return self.executors[k].submit(_score, list(poses), since)
 
     def shutdown(self) -> None:
+        """End the processes now: work still queued or running is dropped (an ended or
+        interrupted search needs none of it), so this never waits for a chunk."""
         for executor in self.executors:
-            executor.shutdown(cancel_futures=True)
+            # The executor's own processes: it can only wait for them to finish
+            # (``kill_workers`` comes in Python 3.14).
+            processes = list((executor._processes or {}).values())
+            executor.shutdown(wait=False, cancel_futures=True)
+            for process in processes:
+                process.kill()
+            for process in processes:
+                process.join()
+            executor.shutdown(wait=True)

@@ -1,0 +1,286 @@
+"""Ctrl-C and SIGTERM at any moment of a run (``headless.interrupts``).
+
+Ctrl-C is SIGINT to the whole process group, as a terminal sends it (workers get it
+too); SIGTERM goes to the main process (``kill``) or to the group (``timeout``). At
+each moment the run must end within 5 s with exit code 130, print no traceback and
+no crash, leave no process of its own running and no temporary file, and end with
+one line that says truly what was kept: the checkpoint holds the sensors it names,
+and ``--resume`` goes on from them.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from tests.cli.conftest import SAMPLES
+from tests.conftest import ROOT
+
+pytestmark = pytest.mark.skipif(
+    not Path("/proc/self/stat").exists() or sys.platform == "win32",
+    reason="process groups and /proc",
+)
+
+FLAT = SAMPLES / "flat_wall.blend"
+TWO = SAMPLES / "two_routes.blend"
+XODR = ROOT / "tests" / "data" / "xodr" / "Town04.xodr"
+LIMIT_S = 5.0
+ES = 'optimizer = "es"\nrho = 0.6\n[es]\nmu = 8\nlam = 4\nmax_epochs = 4\n'
+
+
+class Run:
+    """A command started in a session of its own, its stderr read as it comes."""
+
+    def __init__(self, *args: object) -> None:
+        self.start = time.monotonic()
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "headless", *map(str, args)],
+            cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+            start_new_session=True,
+        )  # fmt: skip
+        self.lines: list[str] = []
+        self.reader = threading.Thread(target=self._read, daemon=True)
+        self.reader.start()
+
+    def _read(self) -> None:
+        assert self.proc.stderr is not None
+        for line in self.proc.stderr:
+            self.lines.append(line)
+
+    def wait_for(self, condition, seconds: float = 180) -> None:
+        end = time.monotonic() + seconds
+        while not condition():
+            assert self.proc.poll() is None, f"ended first: {''.join(self.lines)}"
+            assert time.monotonic() < end, f"never came: {''.join(self.lines)}"
+            time.sleep(0.02)
+
+    def group(self) -> set[int]:
+        """Live (not zombie) processes of its process group."""
+        out = set()
+        for stat in Path("/proc").glob("[0-9]*/stat"):
+            try:
+                fields = stat.read_text().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[2]) == self.proc.pid and fields[0] != "Z":
+                out.add(int(stat.parent.name))
+        return out
+
+    def interrupt(self, how: str) -> tuple[int, str]:
+        """Send ``how`` (SIGINT: to the group; SIGTERM: to the main process;
+        SIGTERM-group); wait for the end and check what every interrupt must do.
+        Returns the exit code and the whole stderr."""
+        try:
+            sent = time.monotonic()
+            if how == "SIGTERM":
+                self.proc.send_signal(signal.SIGTERM)
+            else:
+                os.killpg(self.proc.pid, getattr(signal, how.removesuffix("-group")))
+            code = self.proc.wait(timeout=60)
+            took = time.monotonic() - sent
+            self.reader.join(10)
+            stderr = "".join(self.lines)
+            assert took < LIMIT_S, (took, stderr)
+            assert "Traceback" not in stderr and "Segmentation" not in stderr, stderr
+            assert code in (130, 0, 3), (code, stderr)  # 0, 3: it had ended first
+            end = time.monotonic() + 2
+            while self.group() and time.monotonic() < end:
+                time.sleep(0.05)
+            assert not self.group(), stderr
+            if code == 130:
+                assert stderr.strip().splitlines()[-1].startswith("interrupted: "), stderr
+            return code, stderr
+        finally:
+            if self.proc.poll() is None:
+                os.killpg(self.proc.pid, signal.SIGKILL)
+
+
+def last_line(stderr: str) -> str:
+    return stderr.strip().splitlines()[-1]
+
+
+def no_scratch(folder: Path) -> None:
+    """No temporary file of a write is left (the lock is the run's own)."""
+    left = [
+        p.name for p in folder.iterdir() if p.name.startswith(".") and p.name != ".autoscoop.lock"
+    ]
+    assert not left
+
+
+def records(checkpoint: Path) -> int:
+    return max(checkpoint.read_bytes().count(b"\n") - 1, 0) if checkpoint.exists() else 0
+
+
+@pytest.fixture
+def es_config(tmp_path) -> Path:
+    cfg = tmp_path / "es.toml"
+    cfg.write_text(ES)
+    return cfg
+
+
+@pytest.mark.parametrize("delay", [0.4, 0.9, 1.6, 2.4])
+@pytest.mark.parametrize("how", ["SIGINT", "SIGTERM"])
+def test_in_the_first_seconds(tmp_path, es_config, delay, how):
+    """Python's start, bpy's import (Blender's start-up scripts), the scene's load:
+    no KeyboardInterrupt traceback, no crash at exit (exit 139 before)."""
+    out = tmp_path / "out"
+    run = Run("optimize", FLAT, "--config", es_config, "--workers", "2", "--out-dir", out)
+    time.sleep(delay)
+    code, stderr = run.interrupt(how)
+    assert code == 130, stderr
+    assert last_line(stderr) in (
+        "interrupted: nothing written",
+        "interrupted: nothing kept: no sensor had been fixed yet",
+    )
+    assert not (out / "checkpoint.jsonl").exists()
+
+
+@pytest.mark.parametrize("how", ["SIGINT", "SIGTERM-group"])
+def test_while_es_workers_start(tmp_path, es_config, how):
+    """The workers get the signal too, while the main process still sends them their
+    start-up data: it hung there for good before."""
+    out = tmp_path / "out"
+    run = Run("optimize", FLAT, "--config", es_config, "--workers", "2", "--out-dir", out)
+    run.wait_for(lambda: len(run.group()) >= 3)  # main, the resource tracker, a worker
+    code, stderr = run.interrupt(how)
+    assert code == 130
+    assert last_line(stderr) == "interrupted: nothing kept: no sensor had been fixed yet"
+
+
+@pytest.mark.parametrize("how", ["SIGINT", "SIGTERM"])
+def test_es_keeps_its_fixed_sensors_and_resumes(tmp_path, es_config, how):
+    out = tmp_path / "out"
+    checkpoint = out / "checkpoint.jsonl"
+    args = ("optimize", FLAT, "--config", es_config, "--workers", "2", "--out-dir", out)
+    run = Run(*args)
+    run.wait_for(lambda: records(checkpoint) >= 1)
+    code, stderr = run.interrupt(how)
+    if code != 130:
+        pytest.skip("the run ended before the signal")
+    kept = records(checkpoint)
+    assert last_line(stderr) == (
+        f"interrupted: {kept} sensor(s) kept in {checkpoint}; the same command with "
+        "--resume goes on from them"
+    )
+    no_scratch(out)
+    assert not (out / "result.json").exists()
+    resumed = subprocess.run(
+        [sys.executable, "-m", "headless", *map(str, args), "--resume"],
+        cwd=ROOT, capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert resumed.returncode in (0, 3), resumed.stderr
+    assert f"resuming after {kept} fixed sensor(s)" in resumed.stderr
+
+
+@pytest.mark.parametrize("how", ["SIGINT", "SIGTERM-group"])
+def test_while_the_results_are_written(tmp_path, es_config, how):
+    """Between the search's end and the last rename: all result files or none."""
+    out = tmp_path / "out"
+    run = Run("optimize", FLAT, "--config", es_config, "--out-dir", out)
+    run.wait_for(lambda: any("| done" in line for line in run.lines))
+    code, _ = run.interrupt(how)
+    written = {p.name for p in out.iterdir()} & {"result.json", "sensors.csv", "result.blend"}
+    assert written == (set() if code == 130 else {"result.json", "sensors.csv", "result.blend"})
+    no_scratch(out)
+
+
+@pytest.mark.parametrize("moment", [4.0, 12.0])
+def test_lp_says_it_kept_nothing(tmp_path, moment):
+    """The lp optimizer fixes its sensors once its plan is done: interrupted while it
+    builds its candidates or solves, nothing is kept, and the line says so."""
+    out = tmp_path / "out"
+    run = Run("optimize", TWO, "--out-dir", out)
+    time.sleep(moment)
+    code, stderr = run.interrupt("SIGINT")
+    assert code == 130
+    assert last_line(stderr) == (
+        "interrupted: nothing kept: no sensor had been fixed yet (lp fixes its sensors "
+        "once its plan is done)"
+    )
+    assert not (out / "checkpoint.jsonl").exists()
+
+
+def test_greedy_keeps_what_it_fixed(tmp_path):
+    out = tmp_path / "out"
+    checkpoint = out / "checkpoint.jsonl"
+    run = Run("optimize", TWO, "--optimizer", "greedy", "--out-dir", out)
+    run.wait_for(lambda: records(checkpoint) >= 2)
+    code, stderr = run.interrupt("SIGTERM")
+    assert code == 130
+    assert last_line(stderr).startswith(f"interrupted: {records(checkpoint)} sensor(s) kept in")
+
+
+@pytest.mark.parametrize("moment", [2.5, 6.0])
+def test_an_import_writes_nothing(tmp_path, moment):
+    out = tmp_path / "town.blend"
+    run = Run("import-xodr", XODR, "--out", out)
+    time.sleep(moment)
+    code, stderr = run.interrupt("SIGINT")
+    if code == 130:
+        assert last_line(stderr) == "interrupted: nothing written"
+        assert not out.exists()
+    no_scratch(tmp_path)
+
+
+def watchdog_script(body: str) -> subprocess.Popen:
+    """A process that installs the interrupts as ``__main__`` does, then runs ``body``."""
+    code = (
+        "import sys, time\nfrom pathlib import Path\nfrom headless import interrupts\n"
+        "interrupts.install()\ninterrupts.keep('what the test keeps')\n"
+        "print('ready', flush=True)\n" + body
+    )
+    return subprocess.Popen(
+        [sys.executable, "-c", code], cwd=ROOT, stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+
+
+def test_work_that_holds_the_interrupt_is_ended_by_the_watchdog(tmp_path):
+    """A block that holds interrupts (Blender's own code) and runs on: the watchdog
+    ends it GRACE_S (3 s) after the signal, removes its scratch files, prints the
+    line once."""
+    scratch = tmp_path / "scratch"
+    scratch.mkdir()
+    proc = watchdog_script(
+        f"interrupts.add_scratch(Path({str(scratch)!r}))\n"
+        "with interrupts.held():\n    time.sleep(60)\n"
+    )
+    assert proc.stdout.readline().strip() == "ready"
+    sent = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    _, stderr = proc.communicate(timeout=30)
+    took = time.monotonic() - sent
+    assert proc.returncode == 130 and 2.9 < took < 4.5, (took, stderr)
+    assert stderr == "interrupted: what the test keeps\n"
+    assert not scratch.exists()
+
+
+def test_a_second_interrupt_ends_it_at_once():
+    proc = watchdog_script("with interrupts.held():\n    time.sleep(60)\n")
+    assert proc.stdout.readline().strip() == "ready"
+    proc.send_signal(signal.SIGINT)
+    time.sleep(0.3)
+    sent = time.monotonic()
+    proc.send_signal(signal.SIGTERM)
+    _, stderr = proc.communicate(timeout=30)
+    assert proc.returncode == 130 and time.monotonic() - sent < 1.0
+    assert stderr == "interrupted: what the test keeps\n"
+
+
+def test_a_held_interrupt_is_raised_when_the_block_ends():
+    """Held for a moment, not lost: KeyboardInterrupt comes at the end of the block."""
+    proc = watchdog_script(
+        "try:\n    with interrupts.held():\n        time.sleep(1.0)\n    print('lost')\n"
+        "except KeyboardInterrupt:\n    print('raised', flush=True)\n"
+    )
+    assert proc.stdout.readline().strip() == "ready"
+    proc.send_signal(signal.SIGINT)
+    out, _ = proc.communicate(timeout=30)
+    assert out.strip() == "raised"
