@@ -12,7 +12,11 @@ Blender data of it, in one new collection per import:
 Each object carries the road id and lane types (``names.XODR_ROAD_PROP``,
 ``names.XODR_LANES_PROP``), so a user can find, delete or re-mark them. The scene gets
 the file's georeference (``names.CRS_PROP``, ``names.CRS_OFFSET_PROP``). Everything is
-checked before the first object is made: a refused import changes nothing.
+checked before the first object is made: a refused import changes nothing. What is
+made is what ``scene.extract.extract_scene`` accepts (``io.opendrive.build`` sizes and
+checks every road against the scene contract's limits; here, that there is a target
+and a sensor area at all). A long import reports progress through ``progress(stage,
+done, total)``, at least every second or so.
 """
 
 from __future__ import annotations
@@ -32,8 +36,12 @@ from numpy.typing import NDArray
 from .. import names
 from ..core.errors import InputError, SceneContractError
 from ..core.model.scene import area_from_rings
+from ..core.model.sensors import MAX_RANGE_M
 from ..io.georef import check_crs
 from ..io.opendrive import AreaRings, SurfaceMesh, build_import, read_opendrive
+from ..io.opendrive.build import MIN_SENSOR_PART_M2, MIN_TARGET_PART_M2
+from ..io.opendrive.progress import Progress, Ticker
+from .extract import area_role
 
 # Viewport colours (solid mode, "Object" colour): asphalt, grass.
 _ROAD_COLOUR = (0.25, 0.25, 0.27, 1.0)
@@ -86,6 +94,11 @@ def parse_band(text: str) -> tuple[float, float]:
         raise InputError(f"--band {text!r}: give INNER:OUTER in metres, e.g. 1:6") from None
     if not (math.isfinite(inner) and math.isfinite(outer) and 0 <= inner < outer):
         raise InputError(f"--band {text!r}: needs 0 <= INNER < OUTER, e.g. 1:6")
+    if outer > MAX_RANGE_M:
+        raise InputError(
+            f"--band {text!r}: OUTER may be at most {MAX_RANGE_M:g} m (a road-side sensor's "
+            "longest reach)"
+        )
     return inner, outer
 
 
@@ -95,15 +108,43 @@ def import_xodr(
     band: tuple[float, float] = (1.0, 6.0),
     terrain: str = "flat",
     scene: bpy.types.Scene | None = None,
+    progress: Progress | None = None,
 ) -> ImportSummary:
     """Import an OpenDRIVE file into ``scene`` (default: the context's); see the module
-    docstring. InputError (one line) for a file that is not OpenDRIVE, bad options, or
-    a scene georeferenced otherwise; then nothing is changed."""
+    docstring. InputError (one line) for a file that is not OpenDRIVE, bad options, a
+    file past the import's limits (naming the road and the figure), one that would
+    give no target or no sensor area, or a scene georeferenced otherwise; then nothing
+    is changed. ``progress(stage, done, total)``: "reading" (bytes), "parsing",
+    "sizing", "roads", "targets", "sensor areas" (roads), "objects" (Blender objects).
+    """
     t0 = time.perf_counter()
     scene = scene or bpy.context.scene
-    network = read_opendrive(path)
-    imported = build_import(network, tuple(lane_types), band, terrain)
+    network = read_opendrive(path, progress)
+    imported = build_import(network, tuple(lane_types), band, terrain, progress)
     warnings = list(imported.warnings)
+    # A scene needs a target and a sensor area (``extract_scene``): one the import
+    # does not make is an error, unless the scene has one already (a second import).
+    have = {area_role(obj) for obj in scene.objects}
+    for made, role, text in (
+        (
+            imported.targets,
+            names.ROLE_TARGET,
+            f"no target area: the {', '.join(lane_types)} lanes leave no part of "
+            f"{MIN_TARGET_PART_M2:g} m^2 or more",
+        ),
+        (
+            imported.sensor_areas,
+            names.ROLE_SENSOR_AREA,
+            f"no sensor area: the band {band[0]:g}:{band[1]:g} m beside the roads leaves "
+            f"no part of {MIN_SENSOR_PART_M2:g} m^2 or more once every road's surface is "
+            "cut out of it",
+        ),
+    ):
+        if made:
+            continue
+        if role not in have:
+            raise InputError(f"{network.path}: {text}")
+        warnings.append(f"{Path(path).name}: {text} (the scene has others)")
     crs = _usable_crs(imported.crs, Path(path).name, warnings)
     _check_georeference(scene, crs, imported.crs_offset, Path(path).name)
 
@@ -112,15 +153,21 @@ def import_xodr(
     roads = _collection(f"{stem} roads", top)
     targets = _collection(f"{stem} targets", top)
     sensors = _collection(f"{stem} sensor areas", top)
+    total = len(imported.surfaces) + len(imported.targets) + len(imported.sensor_areas)
+    tick = Ticker(progress, "objects", total)
     for surface in imported.surfaces:
         _mesh_object(surface, roads, _ROAD_COLOUR)
+        tick(tick.done_units + 1)
     if imported.ground is not None:
         ground = _mesh_object(imported.ground, roads, _GROUND_COLOUR)
         ground.display_type = "SOLID"
     for area in imported.targets:
         _curve_object(area, targets)
+        tick(tick.done_units + 1)
     for area in imported.sensor_areas:
         _curve_object(area, sensors)
+        tick(tick.done_units + 1)
+    tick.done()
     if crs:
         scene[names.CRS_PROP] = crs
     elif imported.crs:

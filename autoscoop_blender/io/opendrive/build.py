@@ -13,13 +13,30 @@ largest that keeps
 - and the step at most ``MAX_STEP`` = 20 m,
 
 so the plan-area error of a lane is a few hundredths of a per cent.
+
+Sizing before building: every road is first planned (``_plan_road``): its stations
+counted from the rule above, then made and the road evaluated there, and every figure
+checked against the limits below (length, stations, coordinates, lane widths, heights,
+slopes; the file's mesh points, extent and header offset). Past a limit the import is
+refused with one line naming the road and the figure, before a single polygon is
+made. The limits agree with what a scene must be for ``optimize`` (the scene contract
+in ``scene/extract.py`` and ``core/model``): an import that succeeds gives a scene
+``extract_scene`` accepts.
+
+A planView whose next geometry starts away from where the one before it ends (more
+than ``GAP_TOL_M``) is warned about, and the lanes are cut there: sampling splits at
+the jump, so no strip is invented across it. A lane whose ring crosses itself (it
+folds: a lateral offset beyond the radius of curvature; or the road winds over the
+same ground) is the union of its steps, made in chunks: no ``make_valid`` on a ring
+that may loop round a hundred times.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 import shapely
@@ -27,14 +44,19 @@ from numpy.typing import NDArray
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.base import BaseGeometry
 
-from ...core.errors import InputError
+from ...core.errors import InputError, SceneContractError
+from ...core.model.scene import LOCAL_ORIGIN_BEYOND_M, MAX_RING_TILT_DEG, area_from_rings
+from ...core.model.sensors import MAX_COORD_M, MAX_RANGE_M
+from ..georef import MAX_OFFSET_M
 from .geometry import (
     ReferenceLine,
+    eval_poly_slopes,
     eval_polys,
-    second_derivative_bound,
+    second_derivative_bounds,
     section_borders,
 )
-from .parse import LaneSection, OpenDriveNetwork, Road
+from .parse import MAX_ROADS, LaneSection, OpenDriveNetwork, Road, skipped_reasons
+from .progress import Progress, Ticker
 
 F64 = NDArray[np.float64]
 
@@ -55,6 +77,46 @@ GROUND_MARGIN_M = 20.0
 GROUND_BELOW_M = 0.05
 MIN_SENSOR_PART_M2 = 1.0
 MIN_TARGET_PART_M2 = 0.01  # slivers from section seams in unions
+
+# --- limits: past one, the import is refused naming the road and the figure ------------
+# A road's length (and the s its lane sections span). The longest roads of real files
+# are a few kilometres (Town04's longest is 584 m); a road is cut into many where a
+# network is longer. 100 km is 5,000 stations at the 20 m step, and bounds the work
+# of a file whose one road says 1e9 m (it grew to 23 GB before).
+MAX_ROAD_LENGTH_M = 100_000.0
+# Stations of one road, by the sampling rule: Town04's most are 77. 50,000 leave room
+# for a 100 km road turning through 2,500 rad; beyond, the rule is being asked to
+# follow a profile no road has (a width cubic with d = 1e6 asks for millions).
+MAX_ROAD_STATIONS = 50_000
+# Mesh points of the whole file (stations x lane borders, summed over lane sections):
+# Town04 has 20,000. Five million are about 120 MB of vertices and, measured, about
+# a minute of geometry; the memory of the import stays a few GB.
+MAX_POINTS = 5_000_000
+# A lane wider than this is no lane (the widest proving-ground areas drawn as one lane,
+# vehicle-dynamics pads, are a few hundred metres across; Town04's widest lane is
+# under 10 m).
+MAX_LANE_WIDTH_M = 1_000.0
+# Heights a road may have (elevation, and superelevation's rise at the lane border):
+# a scene's origin is moved near its areas in plan only (``choose_origin``), so a
+# height keeps the precision float32 (Blender's meshes, the ray caster) has there:
+# about 1 mm within LOCAL_ORIGIN_BEYOND_M = 10 km. Roads on Earth lie between -430 m
+# and 5,800 m.
+MAX_HEIGHT_M = LOCAL_ORIGIN_BEYOND_M
+# Grade and superelevation: a target area follows its road, and a scene refuses one
+# tilted beyond MAX_RING_TILT_DEG (45 deg, a 100 % grade); real roads stay under 40 %.
+MAX_GRADE = math.tan(math.radians(MAX_RING_TILT_DEG))
+MAX_SUPERELEVATION_RAD = math.radians(MAX_RING_TILT_DEG)
+# A planView geometry starting farther than this from where the one before it ends is
+# a jump (warned; the lanes are cut there). The real files' largest is 1.5 mm.
+GAP_TOL_M = 0.1
+# Steps of lanes (and sensor bands) whose ring crosses itself, summed over the file:
+# each is made as a union of its steps, about 0.1 ms a step (measured 1.2 s for a
+# lane wound 95 times round a 1.7 m radius, 12,000 steps). 200,000 is some 20 s.
+MAX_TANGLED_STEPS = 200_000
+# Steps of such a strip made into one polygon before the pieces are merged: short
+# enough that a piece seldom crosses itself (a lane turning 3.2 rad), long enough to
+# keep the pieces few.
+CHUNK_STEPS = 64
 
 
 @dataclass(frozen=True)
@@ -89,12 +151,16 @@ class ImportedNetwork:
 
 @dataclass
 class _Edge:
-    """The outermost surface border of one side of one lane section."""
+    """The outermost surface border of one side of one run of a lane section."""
 
     side: int
     xy: F64  # (N, 2) plan points
     normal: F64  # (N, 2) unit left normals
     z: F64  # (N,)
+    ref: F64  # (N, 2) the reference line's plan points
+    q: F64  # (N,) the border's plan lateral offset: xy = ref + q * normal
+    s: F64  # (N,)
+    h: F64  # (N,) heading, rad
 
 
 @dataclass
@@ -104,6 +170,39 @@ class _RoadParts:
     faces: NDArray[np.int32]
     lanes: list[tuple[str, Polygon | MultiPolygon]] = field(default_factory=list)
     edges: list[_Edge] = field(default_factory=list)
+
+
+@dataclass
+class _Run:
+    """Stations of a lane section between planView jumps, the road evaluated there:
+    s, x, y, heading, elevation, superelevation (N,) and every border's t (N,)."""
+
+    s: F64
+    x: F64
+    y: F64
+    h: F64
+    elev: F64
+    phi: F64
+    borders: dict[int, F64]
+
+
+@dataclass
+class _RoadPlan:
+    """A road sized and checked: its lane sections' runs, counts and plan extent."""
+
+    road: Road
+    sections: list[tuple[LaneSection, float, list[_Run]]]
+    stations: int
+    points: int
+    lo: F64  # (2,) plan box of every lane border point
+    hi: F64
+
+
+@dataclass
+class _Tangles:
+    """Steps of self-crossing strips made so far (``MAX_TANGLED_STEPS``)."""
+
+    steps: int = 0
 
 
 def _section_ends(road: Road) -> list[tuple[LaneSection, float, float]]:
@@ -116,8 +215,8 @@ def _section_ends(road: Road) -> list[tuple[LaneSection, float, float]]:
     return out
 
 
-def _stations(road: Road, ref: ReferenceLine, sec: LaneSection, s0: float, s1: float) -> F64:
-    """Sample positions along s in [s0, s1] by the rule in the module docstring."""
+def _cuts(road: Road, sec: LaneSection, s0: float, s1: float) -> F64:
+    """The stations every record start makes in [s0, s1] (both ends included)."""
     marks = {s0, s1}
     marks |= {g.s for g in road.geometries}
     marks |= {r.s for r in (*road.lane_offsets, *road.elevation, *road.superelevation)}
@@ -129,24 +228,245 @@ def _stations(road: Road, ref: ReferenceLine, sec: LaneSection, s0: float, s1: f
         cuts = np.append(cuts, s1)
     else:
         cuts[-1] = s1
-    pieces = [cuts[:1]]
-    for a, b in zip(cuts[:-1], cuts[1:], strict=True):
-        length = b - a
-        m = int(np.clip(np.ceil(length / 0.5), 8, 4000))
-        grid = np.linspace(a, b, m + 1)
-        turn = float(np.abs(np.diff(np.unwrap(ref.evaluate(grid)[2]))).sum())
-        borders, _ = section_borders(road, sec, np.array([a, b]))
-        half = max(float(np.abs(v).max()) for v in borders.values()) + 1.0
-        bound = second_derivative_bound(road.lane_offsets, a, b, 0.0)
-        bound += second_derivative_bound(road.elevation, a, b, 0.0)
-        bound += half * second_derivative_bound(road.superelevation, a, b, 0.0)
+    return cuts
+
+
+def _steps(road: Road, ref: ReferenceLine, sec: LaneSection, cuts: F64) -> tuple[F64, str]:
+    """Steps between consecutive cuts by the rule in the module docstring, as floats
+    (inf where a profile overflows), and what asks for the most of them."""
+    a, b = cuts[:-1], cuts[1:]
+    length = b - a
+    turn = ref.turns(a, b)
+    # A cut ending where the next geometry starts also turns by the kink there.
+    nxt = ref.index(b) != ref.index(a)
+    if nxt.any():
+        with np.errstate(over="ignore", invalid="ignore"):
+            h1 = ref.evaluate(b[nxt])[2]
+            h0 = ref.evaluate(b[nxt], before=True)[2]
+            turn[nxt] += np.abs((h1 - h0 + np.pi) % (2.0 * np.pi) - np.pi)
+    borders, _ = section_borders(road, sec, cuts)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        reach = np.max(np.abs(np.stack(list(borders.values()))), axis=0)
+        half = np.maximum(reach[:-1], reach[1:]) + 1.0
+        bound = second_derivative_bounds(road.lane_offsets, a, b, 0.0)
+        bound = bound + second_derivative_bounds(road.elevation, a, b, 0.0)
+        bound = bound + half * second_derivative_bounds(road.superelevation, a, b, 0.0)
         for lane in (*sec.left, *sec.right):
-            bound += second_derivative_bound(lane.widths or lane.borders, a, b, sec.s)
-        n = max(1, math.ceil(length / MAX_STEP), math.ceil(turn / MAX_TURN))
-        if bound > 0:
-            n = max(n, math.ceil(length / math.sqrt(8.0 * CHORD_TOL / bound)))
-        pieces.append(np.linspace(a, b, n + 1)[1:])
-    return np.concatenate(pieces)
+            bound = bound + second_derivative_bounds(lane.widths or lane.borders, a, b, sec.s)
+        bound = np.nan_to_num(bound, nan=np.inf)
+        by_length = np.ceil(length / MAX_STEP)
+        by_turn = np.nan_to_num(np.ceil(turn / MAX_TURN), nan=np.inf)
+        by_chord = np.where(bound > 0, np.ceil(length / np.sqrt(8.0 * CHORD_TOL / bound)), 0.0)
+    by_chord = np.nan_to_num(by_chord, nan=np.inf)
+    n = np.maximum(np.maximum(1.0, by_length), np.maximum(by_turn, by_chord))
+    k = int(np.argmax(n))
+    if by_chord[k] >= n[k] and by_chord[k] > by_turn[k]:
+        why = (
+            f"a cubic profile (lane width, offset or height) bends by up to "
+            f"{bound[k]:.3g} 1/m near s={a[k]:g}, so chords within "
+            f"{CHORD_TOL * 1000:g} mm need that many"
+        )
+    elif by_turn[k] >= n[k] and by_turn[k] > by_length[k]:
+        why = f"its heading turns {turn.sum():.4g} rad, {MAX_TURN:g} rad a step"
+    else:
+        why = f"{length.sum():.4g} m at {MAX_STEP:g} m a step"
+    return n, why
+
+
+def _stations_from(cuts: F64, n: NDArray[np.int64]) -> F64:
+    """``np.linspace(a, b, n + 1)[1:]`` of every cut after the first station, at once
+    (the same arithmetic: a + i * ((b - a) / n), the last exactly b)."""
+    a, b = cuts[:-1], cuts[1:]
+    step = (b - a) / n
+    first = np.cumsum(n) - n
+    i = np.arange(int(n.sum()), dtype=np.float64) - np.repeat(first, n) + 1.0
+    s = i * np.repeat(step, n) + np.repeat(a, n)
+    s[np.cumsum(n) - 1] = b
+    return np.concatenate([cuts[:1], s])
+
+
+def _stations(road: Road, ref: ReferenceLine, sec: LaneSection, s0: float, s1: float) -> F64:
+    """Sample positions along s in [s0, s1] by the rule in the module docstring (no
+    limit checked: see ``_plan_road``)."""
+    cuts = _cuts(road, sec, s0, s1)
+    n, _ = _steps(road, ref, sec, cuts)
+    return _stations_from(cuts, n.astype(np.int64))
+
+
+def _first(bad: NDArray[np.bool_]) -> int:
+    return int(np.flatnonzero(bad)[0])
+
+
+def _check_run(road: Road, sec: LaneSection, s0: float, run: _Run, outer: float) -> None:
+    """InputError naming the road, the figure and where, for a run past a limit."""
+    rid, s = road.id, run.s
+    finite = np.isfinite(run.x) & np.isfinite(run.y) & np.isfinite(run.h)
+    if not finite.all():
+        k = _first(~finite)
+        raise InputError(
+            f"road {rid}: its reference line overflows at s={s[k]:g} (x = {run.x[k]:g}, "
+            f"y = {run.y[k]:g}): a geometry's numbers are too large to evaluate"
+        )
+    lateral = np.zeros_like(s)
+    for lane in (*sec.left, *sec.right):
+        side = 1 if lane.id > 0 else -1
+        with np.errstate(over="ignore", invalid="ignore"):
+            width = side * (run.borders[lane.id] - run.borders[lane.id - side])
+        wide = ~(np.abs(width) <= MAX_LANE_WIDTH_M)  # NaN counts as too wide
+        if wide.any():
+            k = _first(wide)
+            raise InputError(
+                f"road {rid}: lane {lane.id} is {width[k]:.3g} m wide at s={s[k]:g} (lane "
+                f"section at s={s0:g}), beyond the {MAX_LANE_WIDTH_M:,.0f} m a lane may be"
+            )
+    for t in run.borders.values():
+        with np.errstate(invalid="ignore"):
+            lateral = np.maximum(lateral, np.abs(t))
+    if not np.isfinite(lateral).all():
+        k = _first(~np.isfinite(lateral))
+        raise InputError(f"road {rid}: its lane offset is not finite at s={s[k]:g}")
+    reach = np.maximum(np.abs(run.x), np.abs(run.y)) + lateral + outer
+    far = reach > MAX_COORD_M
+    if far.any():
+        k = _first(far)
+        raise InputError(
+            f"road {rid}: reaches {reach[k]:.3g} m from the file's origin at s={s[k]:g} "
+            f"(reference line at x = {run.x[k]:.4g}, y = {run.y[k]:.4g}), beyond the "
+            f"{MAX_COORD_M:g} m a scene point may lie"
+        )
+    with np.errstate(over="ignore", invalid="ignore"):
+        height = np.abs(run.elev) + lateral * np.abs(np.sin(run.phi))
+    high = ~(height <= MAX_HEIGHT_M)
+    if high.any():
+        k = _first(high)
+        raise InputError(
+            f"road {rid}: height {run.elev[k]:.3g} m at s={s[k]:g} is beyond the "
+            f"+-{MAX_HEIGHT_M:g} m a road may have (float32, in which Blender keeps it, "
+            "holds 1 mm only within that)"
+        )
+    with np.errstate(over="ignore", invalid="ignore"):
+        grade = np.abs(eval_poly_slopes(road.elevation, s))
+    steep = ~(grade <= MAX_GRADE)
+    if steep.any():
+        k = _first(steep)
+        raise InputError(
+            f"road {rid}: climbs {grade[k]:.3g} m a metre at s={s[k]:g} "
+            f"({math.degrees(math.atan(grade[k])):.0f} deg), steeper than the "
+            f"{MAX_RING_TILT_DEG:g} deg a target area may tilt"
+        )
+    bank = ~(np.abs(run.phi) <= MAX_SUPERELEVATION_RAD)
+    if bank.any():
+        k = _first(bank)
+        raise InputError(
+            f"road {rid}: superelevation {run.phi[k]:.3g} rad at s={s[k]:g} is steeper "
+            f"than the {MAX_RING_TILT_DEG:g} deg a target area may tilt"
+        )
+
+
+def _plan_road(road: Road, outer: float, warnings: list[str]) -> _RoadPlan | None:
+    """Size and check one road (see the module docstring): its runs of stations with
+    the road evaluated there. None (with a warning) for a road that cannot be built;
+    InputError naming the road and the figure for one past a limit."""
+    rid = road.id
+    if road.length > MAX_ROAD_LENGTH_M:
+        raise InputError(
+            f"road {rid}: length {road.length:.4g} m is beyond the "
+            f"{MAX_ROAD_LENGTH_M / 1000:g} km a road may have"
+        )
+    if not road.sections:
+        warnings.append(f"road {rid}: no lane section; road skipped")
+        return None
+    ends = _section_ends(road)
+    if not ends:
+        warnings.append(
+            f"road {rid}: its lane sections cover none of its length "
+            f"({road.length:g} m); road skipped"
+        )
+        return None
+    lo_s, hi_s = min(e[1] for e in ends), max(e[2] for e in ends)
+    if hi_s - lo_s > MAX_ROAD_LENGTH_M:
+        raise InputError(
+            f"road {rid}: its lane sections span {hi_s - lo_s:.4g} m (s from {lo_s:g}), "
+            f"beyond the {MAX_ROAD_LENGTH_M / 1000:g} km a road may have"
+        )
+    ref = ReferenceLine(road.geometries)
+    steps: list[tuple[LaneSection, float, float, F64, F64]] = []
+    total = 0.0
+    for sec, s0, s1 in ends:
+        cuts = _cuts(road, sec, s0, s1)
+        if len(cuts) > MAX_ROAD_STATIONS:
+            raise InputError(
+                f"road {rid}: {len(cuts):,} record starts (geometries, lane widths, "
+                f"profiles) make more stations than the {MAX_ROAD_STATIONS:,} a road may "
+                "have"
+            )
+        _, faults = section_borders(road, sec, cuts[:1])
+        if faults:
+            lane_id, why = next(iter(faults.items()))
+            warnings.append(
+                f"road {rid}: lane {lane_id} in the lane section at s={s0:g} {why}; road skipped"
+            )
+            return None
+        n, why = _steps(road, ref, sec, cuts)
+        total += float(n.sum()) + 1.0
+        if total > MAX_ROAD_STATIONS:
+            raise InputError(
+                f"road {rid}: sampling it takes {total:.3g} stations ({why}), beyond "
+                f"the {MAX_ROAD_STATIONS:,} a road may have"
+            )
+        steps.append((sec, s0, s1, cuts, n))
+    jumps = []
+    for s_jump, gap in ref.jumps():
+        if not lo_s < s_jump <= hi_s:
+            continue
+        if gap > GAP_TOL_M:
+            warnings.append(
+                f"road {rid}: the planView jumps {gap:.4g} m at s={s_jump:g} (the geometry "
+                "there starts away from where the one before it ends); the lanes are cut "
+                "there, not bridged"
+            )
+        if not gap <= GAP_TOL_M:  # NaN too: evaluated apart, then checked
+            jumps.append(s_jump)
+    sections: list[tuple[LaneSection, float, list[_Run]]] = []
+    points = 0
+    lo = np.full(2, np.inf)
+    hi = np.full(2, -np.inf)
+    for sec, s0, s1, cuts, n in steps:
+        s = _stations_from(cuts, n.astype(np.int64))
+        # Each jump is a station (every geometry start is a cut): runs end there.
+        at = [int(np.argmin(np.abs(s - j))) for j in jumps if s0 < j <= s1]
+        for k, j in zip(at, (j for j in jumps if s0 < j <= s1), strict=True):
+            s[k] = j
+        bounds = [0, *at, len(s) - 1]
+        runs = []
+        for i0, i1 in zip(bounds[:-1], bounds[1:], strict=True):
+            if i1 <= i0:
+                continue
+            run = _evaluate(road, ref, sec, s[i0 : i1 + 1], end_before=i1 in at)
+            _check_run(road, sec, s0, run, outer)
+            runs.append(run)
+            points += len(run.s) * len(run.borders)
+            for t in run.borders.values():
+                px = run.x - np.sin(run.h) * t * np.cos(run.phi)
+                py = run.y + np.cos(run.h) * t * np.cos(run.phi)
+                lo = np.minimum(lo, [px.min(), py.min()])
+                hi = np.maximum(hi, [px.max(), py.max()])
+        sections.append((sec, s0, runs))
+    return _RoadPlan(road, sections, int(total), points, lo, hi)
+
+
+def _evaluate(road: Road, ref: ReferenceLine, sec: LaneSection, s: F64, end_before: bool) -> _Run:
+    """The road at stations s; the last one with the geometry that ends there when a
+    jump is there (``end_before``)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        x, y, h = ref.evaluate(s)
+        if end_before:
+            xe, ye, he = ref.evaluate(s[-1:], before=True)
+            x[-1], y[-1], h[-1] = xe[0], ye[0], he[0]
+        borders, _ = section_borders(road, sec, s)
+        elev = eval_polys(road.elevation, s)
+        phi = eval_polys(road.superelevation, s)
+    return _Run(s, x, y, h, elev, phi, borders)
 
 
 def _polygonal(geom: BaseGeometry) -> Polygon | MultiPolygon:
@@ -160,14 +480,104 @@ def _polygonal(geom: BaseGeometry) -> Polygon | MultiPolygon:
     return merged if isinstance(merged, Polygon | MultiPolygon) else Polygon()
 
 
-def _ring_polygon(ring: F64) -> Polygon | MultiPolygon:
-    poly = Polygon(ring)
-    if not poly.is_valid:
-        return _polygonal(shapely.make_valid(poly))
-    return poly
+def _steps_union(a: F64, b: F64) -> Polygon | MultiPolygon:
+    """The union of the steps between borders a and b (N, 2): two triangles a step,
+    as the mesh has them; bounded work, whatever the borders do."""
+    t1 = np.stack([a[:-1], a[1:], b[1:], a[:-1]], axis=1)
+    t2 = np.stack([a[:-1], b[1:], b[:-1], a[:-1]], axis=1)
+    tri = np.concatenate([t1, t2])
+    u, v = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    tri = tri[np.abs(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]) > 1e-12]
+    if not len(tri):
+        return Polygon()
+    return _polygonal(shapely.union_all(shapely.polygons(tri)))
 
 
-def _point(frame: tuple[F64, F64, F64, F64, F64, F64], t: F64) -> F64:
+def _chunked(a: F64, b: F64) -> list[Polygon | MultiPolygon]:
+    """Pieces of ``CHUNK_STEPS`` steps of the strip between a and b (N, 2): each its
+    ring if that is valid, else the union of its steps; pieces of no width left out."""
+    pieces = []
+    for k0 in range(0, len(a) - 1, CHUNK_STEPS):
+        sl = slice(k0, min(k0 + CHUNK_STEPS, len(a) - 1) + 1)
+        if not np.any(np.abs(a[sl] - b[sl]) > 1e-12):
+            continue
+        ring = np.concatenate([a[sl], b[sl][::-1]])
+        # Points a rounding apart made one: a fold on an arc ends every step at its
+        # centre, which a zigzag of 1e-15 m would make a ring that crosses itself.
+        ring = ring[np.concatenate([[True], np.abs(np.diff(ring, axis=0)).max(axis=1) > 1e-9])]
+        piece = Polygon(ring) if len(ring) >= 3 else Polygon()
+        pieces.append(piece if piece.is_valid else _steps_union(a[sl], b[sl]))
+    return pieces
+
+
+def _fold_line(s: F64, h: F64, q1: F64, q2: F64) -> F64 | None:
+    """Where a strip between plan laterals q1 and q2 (N,) passes the centre of
+    curvature (q = 1 / curvature): per station the nearer of its two steps' centres,
+    where that lies inside the strip, else q2. None where it never does."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        centre = np.diff(s) / np.diff(np.unwrap(h))  # +-inf where straight
+    before = np.concatenate([centre[:1], centre])
+    after = np.concatenate([centre, centre[-1:]])
+    near = np.where(np.abs(before) < np.abs(after), before, after)
+    inside = (near > np.minimum(q1, q2)) & (near < np.maximum(q1, q2))
+    if not inside.any():
+        return None
+    out: F64 = np.where(inside, near, q2)
+    return out
+
+
+def _lane_split(run: _Run, frame: _Frame, t1: F64, t2: F64) -> F64 | None:
+    """Plan points (N, 2) where a lane from lateral t1 to t2 passes the centre of its
+    curve (``_fold_line``; t is along the tilted road plane, t cos(phi) in plan)."""
+    cphi = frame[4]
+    q = _fold_line(run.s, run.h, t1 * cphi, t2 * cphi)
+    return None if q is None else _point(frame, q / cphi)[:, :2]
+
+
+def _band_split(e: _Edge, inner: float, outer: float) -> F64 | None:
+    """As ``_lane_split``, for the band from ``inner`` to ``outer`` beyond an edge."""
+    q = _fold_line(e.s, e.h, e.q + e.side * inner, e.q + e.side * outer)
+    return None if q is None else e.ref + e.normal * q[:, None]
+
+
+def _strip_polygon(
+    a: F64, b: F64, split: Callable[[], F64 | None] | None = None
+) -> tuple[Polygon | MultiPolygon, bool]:
+    """The plan region between borders a and b (N, 2, the same stations) and whether
+    its ring crossed itself. An ordinary lane is the polygon of its ring. A ring that
+    crosses itself (the lane folds where it passes the centre of its curve, winds over
+    the same ground, or pinches to zero width) is the union of its steps, made in
+    pieces (``_chunked``); a fold first splits the strip along the centres of
+    curvature (``split`` gives those points, (N, 2)), so that the pieces on each side
+    are simple rings (exactly so on an arc). Never ``make_valid`` on the whole ring: on
+    a ring wound a hundred times that ran for minutes, and its even-odd rule drops
+    ground covered twice."""
+    poly = Polygon(np.concatenate([a, b[::-1]]))
+    if poly.is_valid:
+        return poly, False
+    mid = split() if split is not None else None
+    pieces = _chunked(a, b) if mid is None else _chunked(a, mid) + _chunked(mid, b)
+    if not pieces:
+        return Polygon(), True
+    return _polygonal(shapely.union_all(pieces)), True
+
+
+def _tangle(tangles: _Tangles, steps: int, rid: str, path: str) -> None:
+    """Counts steps of self-crossing strips; InputError past ``MAX_TANGLED_STEPS``."""
+    tangles.steps += steps
+    if tangles.steps > MAX_TANGLED_STEPS:
+        raise InputError(
+            f"{path}: road {rid}: lanes whose outlines cross themselves add up to "
+            f"{tangles.steps:,} steps, more than the {MAX_TANGLED_STEPS:,} an import "
+            "untangles (lanes wider than the radius of their curve, or roads winding "
+            "over the same ground)"
+        )
+
+
+_Frame = tuple[F64, F64, F64, F64, F64, F64]  # x, y, normal (N, 2), elev, cos, sin phi
+
+
+def _point(frame: _Frame, t: F64) -> F64:
     """3D points at lateral t: t*cos(phi) along the plan normal, elev + t*sin(phi) up."""
     x, y, normal, elev, cphi, sphi = frame
     return np.column_stack(
@@ -175,75 +585,82 @@ def _point(frame: tuple[F64, F64, F64, F64, F64, F64], t: F64) -> F64:
     )
 
 
-def _build_road(road: Road, warnings: list[str]) -> _RoadParts | None:
-    rid = road.id
-    if not road.sections:
-        warnings.append(f"road {rid}: no lane section; road skipped")
-        return None
-    ref = ReferenceLine(road.geometries)
+def _fold(run: _Run, t: F64) -> int | None:
+    """The first station where a border at lateral t runs backward along the road
+    (1 - t * curvature < 0: it passed the centre of curvature), or None."""
+    kappa = np.diff(np.unwrap(run.h)) / np.maximum(np.diff(run.s), 1e-12)
+    back = t[:-1] * kappa > 1.0
+    return int(np.flatnonzero(back)[0]) if back.any() else None
+
+
+def _build_road(plan: _RoadPlan, warnings: list[str], tangles: _Tangles, path: str) -> _RoadParts:
+    """The mesh, lane polygons and outer edges of a planned road."""
+    rid = plan.road.id
     verts: list[F64] = []
     faces: list[NDArray[np.int64]] = []
     parts = _RoadParts(rid, np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int32))
     n_verts = 0
-    for sec, s0, s1 in _section_ends(road):
-        s = _stations(road, ref, sec, s0, s1)
-        x, y, h = ref.evaluate(s)
-        if not (np.isfinite(x).all() and np.isfinite(y).all()):
-            warnings.append(f"road {rid}: the reference line is not finite; road skipped")
-            return None
-        borders, faults = section_borders(road, sec, s)
-        if faults:
-            lane_id, why = next(iter(faults.items()))
-            warnings.append(
-                f"road {rid}: lane {lane_id} in the lane section at s={s0:g} {why}; road skipped"
-            )
-            return None
-        elev = eval_polys(road.elevation, s)
-        phi = eval_polys(road.superelevation, s)
-        normal = np.column_stack([-np.sin(h), np.cos(h)])
-        cphi, sphi = np.cos(phi), np.sin(phi)
-
-        frame = (x, y, normal, elev, cphi, sphi)
-
-        columns: dict[int, int] = {}  # border id -> first vertex index of its column
-        outermost = {1: 0, -1: 0}
-        n = len(s)
-        for lane in (*sec.left, *sec.right):
-            side = 1 if lane.id > 0 else -1
-            inner_id = lane.id - side
-            width = side * (borders[lane.id] - borders[inner_id])
-            if lane.type.lower() == "none" or float(width.max()) <= 1e-9:
-                continue
-            if float(width.min()) < -NEGATIVE_WIDTH_TOL:
-                k = int(width.argmin())
-                warnings.append(
-                    f"road {rid}: lane {lane.id} in the lane section at s={s0:g} has a "
-                    f"negative width ({width[k]:.3g} m at s={s[k]:.4g}); lane skipped"
+    for sec, s0, runs in plan.sections:
+        folded: set[int] = set()
+        for run in runs:
+            s, borders = run.s, run.borders
+            normal = np.column_stack([-np.sin(run.h), np.cos(run.h)])
+            frame = (run.x, run.y, normal, run.elev, np.cos(run.phi), np.sin(run.phi))
+            columns: dict[int, int] = {}  # border id -> first vertex index of its column
+            outermost = {1: 0, -1: 0}
+            n = len(s)
+            for lane in (*sec.left, *sec.right):
+                side = 1 if lane.id > 0 else -1
+                inner_id = lane.id - side
+                width = side * (borders[lane.id] - borders[inner_id])
+                if lane.type.lower() == "none" or float(width.max()) <= 1e-9:
+                    continue
+                if float(width.min()) < -NEGATIVE_WIDTH_TOL:
+                    k = int(width.argmin())
+                    warnings.append(
+                        f"road {rid}: lane {lane.id} in the lane section at s={s0:g} has a "
+                        f"negative width ({width[k]:.3g} m at s={s[k]:.4g}); lane skipped"
+                    )
+                    continue
+                for bid in (inner_id, lane.id):
+                    if bid not in columns:
+                        columns[bid] = n_verts
+                        verts.append(_point(frame, borders[bid]))
+                        n_verts += n
+                if abs(lane.id) > abs(outermost[side]):
+                    outermost[side] = lane.id
+                right, left = (inner_id, lane.id) if side > 0 else (lane.id, inner_id)
+                a = columns[right] + np.arange(n - 1)
+                d = columns[left] + np.arange(n - 1)
+                tris = np.concatenate(
+                    [np.column_stack([a, a + 1, d + 1]), np.column_stack([a, d + 1, d])]
                 )
+                faces.append(tris)
+                rpts = _point(frame, borders[right])[:, :2]
+                lpts = _point(frame, borders[left])[:, :2]
+                split = partial(_lane_split, run, frame, borders[right], borders[left])
+                poly, tangled = _strip_polygon(rpts, lpts, split)
+                if tangled:
+                    _tangle(tangles, n - 1, rid, path)
+                    fold = _fold(run, borders[lane.id])
+                    if fold is not None and lane.id not in folded:
+                        folded.add(lane.id)
+                        warnings.append(
+                            f"road {rid}: lane {lane.id} in the lane section at s={s0:g} "
+                            f"folds over itself from s={s[fold]:.4g} (its border "
+                            f"{abs(float(borders[lane.id][fold])):.3g} m out is beyond the "
+                            "centre of the curve); its area is the ground it covers"
+                        )
+                parts.lanes.append((lane.type, poly))
+            if not columns:
                 continue
-            for bid in (inner_id, lane.id):
-                if bid not in columns:
-                    columns[bid] = n_verts
-                    verts.append(_point(frame, borders[bid]))
-                    n_verts += n
-            if abs(lane.id) > abs(outermost[side]):
-                outermost[side] = lane.id
-            right, left = (inner_id, lane.id) if side > 0 else (lane.id, inner_id)
-            a = columns[right] + np.arange(n - 1)
-            d = columns[left] + np.arange(n - 1)
-            tris = np.concatenate(
-                [np.column_stack([a, a + 1, d + 1]), np.column_stack([a, d + 1, d])]
-            )
-            faces.append(tris)
-            rpts = _point(frame, borders[right])[:, :2]
-            lpts = _point(frame, borders[left])[:, :2]
-            ring = np.concatenate([rpts, lpts[::-1]])
-            parts.lanes.append((lane.type, _ring_polygon(ring)))
-        if not columns:
-            continue
-        for side, bid in outermost.items():
-            edge = _point(frame, borders[bid])
-            parts.edges.append(_Edge(side, edge[:, :2], normal, edge[:, 2]))
+            for side, bid in outermost.items():
+                edge = _point(frame, borders[bid])
+                ref = np.column_stack([run.x, run.y])
+                q = borders[bid] * frame[4]
+                parts.edges.append(
+                    _Edge(side, edge[:, :2], normal, edge[:, 2], ref, q, run.s, run.h)
+                )
     if not verts:
         return parts
     vertices = np.concatenate(verts)
@@ -257,9 +674,13 @@ def _build_road(road: Road, warnings: list[str]) -> _RoadParts | None:
     return parts
 
 
-# 2^-9 m (about 2 mm): multiples of it below 2^14 m (16 km, beyond the 10 km at which
-# the import shifts coordinates) are exact in float32's 24-bit mantissa.
+# 2^-9 m (about 2 mm): multiples of it below 2^15 m (32.8 km, beyond the 10 km at which
+# the import shifts coordinates) are exact in float32's 24-bit significand.
 FLOAT32_GRID_M = 2.0**-9
+# Where that stops: area rings farther than this from the scene's origin (after the
+# shift) would move once Blender rounds them, and may cross themselves. So a file's
+# roads and bands must fit within it of their centre: about 64 km across.
+FLOAT32_EXACT_M = FLOAT32_GRID_M * 2.0**24
 
 
 def _clean(geom: BaseGeometry, min_part: float, min_hole: float) -> Polygon | MultiPolygon:
@@ -315,7 +736,9 @@ def _surface_z(vertices: F64, faces: NDArray[np.int32], pts: F64) -> F64:
     return out
 
 
-def _band(parts: _RoadParts, inner: float, outer: float) -> BaseGeometry:
+def _band(
+    parts: _RoadParts, inner: float, outer: float, tangles: _Tangles, path: str
+) -> BaseGeometry:
     strips = []
     for e in parts.edges:
         if len(e.xy) < 2:
@@ -323,7 +746,12 @@ def _band(parts: _RoadParts, inner: float, outer: float) -> BaseGeometry:
         off = e.side * e.normal
         near = e.xy + off * inner
         far = e.xy + off * outer
-        strips.append(_ring_polygon(np.concatenate([near, far[::-1]])))
+
+        split = partial(_band_split, e, inner, outer)
+        strip, tangled = _strip_polygon(near, far, split)
+        if tangled:
+            _tangle(tangles, len(e.xy) - 1, parts.road_id, path)
+        strips.append(strip)
     return shapely.union_all(strips) if strips else Polygon()
 
 
@@ -345,13 +773,93 @@ def _lane_types(lane_types: Sequence[str]) -> tuple[str, ...]:
     return tuple(out)
 
 
+def _plan_all(
+    network: OpenDriveNetwork, outer: float, warnings: list[str], progress: Progress | None
+) -> list[_RoadPlan]:
+    """Every road planned (``_plan_road``) and the file's totals checked."""
+    path = network.path
+    if len(network.roads) > MAX_ROADS:
+        raise InputError(
+            f"{path}: {len(network.roads):,} roads are more than the {MAX_ROADS:,} an "
+            "import takes; split the file"
+        )
+    plans: list[_RoadPlan] = []
+    points = 0
+    tick = Ticker(progress, "sizing", len(network.roads))
+    for k, road in enumerate(network.roads):
+        try:
+            plan = _plan_road(road, outer, warnings)
+        except InputError as exc:
+            raise InputError(f"{path}: {exc}") from None
+        if plan is not None:
+            plans.append(plan)
+            points += plan.points
+            if points > MAX_POINTS:
+                raise InputError(
+                    f"{path}: its roads make more than {MAX_POINTS:,} mesh points (stations "
+                    f"x lane borders; road {road.id} alone {plan.points:,}), more than an "
+                    "import builds; split the file"
+                )
+        tick(k + 1)
+    tick.done()
+    return plans
+
+
+def _shift(plans: list[_RoadPlan], outer: float, path: str) -> F64:
+    """The plan shift (whole km, only beyond ``SHIFT_BEYOND_M``) that brings the roads
+    near the origin; InputError when they do not then fit within ``FLOAT32_EXACT_M``."""
+    lo = np.min([p.lo for p in plans], axis=0)
+    hi = np.max([p.hi for p in plans], axis=0)
+    shift = np.zeros(3)
+    corners = np.array([[lo[0], lo[1]], [lo[0], hi[1]], [hi[0], lo[1]], [hi[0], hi[1]]])
+    if float(np.hypot(corners[:, 0], corners[:, 1]).max()) > SHIFT_BEYOND_M:
+        shift[:2] = np.round((lo + hi) / 2.0 / 1000.0) * 1000.0
+    reach = np.maximum(np.abs(lo - shift[:2]), np.abs(hi - shift[:2])) + outer
+    if float(reach.max()) >= FLOAT32_EXACT_M:
+        axis = int(np.argmax(reach))
+        first = min(plans, key=lambda p: float(p.lo[axis]))
+        last = max(plans, key=lambda p: float(p.hi[axis]))
+        name = "xy"[axis]
+        raise InputError(
+            f"{path}: the roads span {(hi[axis] - lo[axis]) / 1000:,.4g} km in {name} "
+            f"(road {first.road.id} at {name} = {first.lo[axis]:,.0f} m to road "
+            f"{last.road.id} at {last.hi[axis]:,.0f} m), more than the "
+            f"{2 * FLOAT32_EXACT_M / 1000:.0f} km an import may span: area outlines are "
+            f"snapped to a {FLOAT32_GRID_M * 1000:.1f} mm grid that float32, as Blender "
+            f"keeps curves, holds only within {FLOAT32_EXACT_M / 1000:.1f} km of the origin"
+        )
+    return shift
+
+
+def _check_target(area: AreaRings, path: str) -> None:
+    """A target whose rings are not flat refused as the scene contract would refuse
+    it (a road so steep, or overlapping itself at such different heights, that its
+    area tilts past ``MAX_RING_TILT_DEG``): InputError naming the road."""
+    if all(np.ptp(r[:, 2]) == 0.0 for r in area.rings):
+        return
+    rounded = [r.astype(np.float32).astype(np.float64) for r in area.rings]
+    try:
+        area_from_rings(area.name, rounded)
+    except SceneContractError as exc:
+        raise InputError(
+            f"{path}: road {area.road_id}: a scene would refuse its target area ({exc})"
+        ) from None
+
+
 def build_import(
     network: OpenDriveNetwork,
     lane_types: Sequence[str] = ("driving",),
     band: tuple[float, float] = (1.0, 6.0),
     terrain: str = "flat",
+    progress: Progress | None = None,
 ) -> ImportedNetwork:
-    """Road meshes, targets (chosen lane types) and sensor-area bands of a network."""
+    """Road meshes, targets (chosen lane types) and sensor-area bands of a network.
+
+    Every road is sized and checked first (module docstring): InputError, one line
+    naming the road and the figure, past a limit. ``progress(stage, done, total)`` is
+    called as the stages go ("sizing", "roads", "targets", "sensor areas"; in roads),
+    at least every ``progress.INTERVAL_S`` while one runs.
+    """
     types = _lane_types(lane_types)
     try:
         inner, outer = float(band[0]), float(band[1])
@@ -361,35 +869,52 @@ def build_import(
         raise InputError(
             f"band {inner:g}:{outer:g}: needs 0 <= inner < outer (metres outside the road)"
         )
+    if outer > MAX_RANGE_M:
+        raise InputError(
+            f"band {inner:g}:{outer:g}: outer may be at most {MAX_RANGE_M:g} m (a "
+            "road-side sensor's longest reach)"
+        )
     if terrain not in ("flat", "none"):
         raise InputError(f"terrain {terrain!r}: must be 'flat' or 'none'")
+    path = network.path
     wanted = {t.lower() for t in types}
     present = {
         ln.type for r in network.roads for sec in r.sections for ln in (*sec.left, *sec.right)
     }
     if not any(t.lower() in wanted for t in present):
         have = ", ".join(sorted(present)) or "no lanes"
+        skipped = skipped_reasons(network.warnings)
         raise InputError(
-            f"{network.path}: no lane of type {', '.join(types)} (the file has: {have})"
+            f"{path}: no lane of type {', '.join(types)} (the file has: {have})"
+            + (f"; roads skipped: {skipped}" if skipped else "")
         )
 
     warnings = list(network.warnings)
-    built: list[_RoadParts] = []
-    for road in network.roads:
-        parts = _build_road(road, warnings)
-        if parts is not None and len(parts.faces):
-            built.append(parts)
-    if not built:
-        raise InputError(f"{network.path}: no road could be built")
-
-    # Shift far-away coordinates (georeferenced files) near the origin.
-    all_xy = np.concatenate([p.vertices[:, :2] for p in built])
-    lo, hi = all_xy.min(axis=0), all_xy.max(axis=0)
-    shift = np.zeros(3)
-    corners = np.array([[lo[0], lo[1]], [lo[0], hi[1]], [hi[0], lo[1]], [hi[0], hi[1]]])
-    if float(np.hypot(corners[:, 0], corners[:, 1]).max()) > SHIFT_BEYOND_M:
-        shift[:2] = np.round((lo + hi) / 2.0 / 1000.0) * 1000.0
+    plans = _plan_all(network, outer, warnings, progress)
+    if not plans:
+        raise InputError(f"{path}: no road could be built: {skipped_reasons(warnings)}")
+    shift = _shift(plans, outer, path)
     sx, sy = float(shift[0]), float(shift[1])
+
+    built: list[_RoadParts] = []
+    tangles = _Tangles()
+    tick = Ticker(progress, "roads", len(plans))
+    for k, plan in enumerate(plans):
+        parts = _build_road(plan, warnings, tangles, path)
+        plan.sections = []  # the evaluated stations are not needed again
+        if len(parts.faces):
+            built.append(parts)
+        tick(k + 1)
+    tick.done()
+    if not built:
+        reasons = skipped_reasons(warnings)
+        raise InputError(
+            f"{path}: no road could be built: "
+            + (reasons or "no lane has a width (every one is zero, negative or type none)")
+        )
+
+    def moved(geom: BaseGeometry) -> BaseGeometry:
+        return shapely.affinity.translate(geom, -sx, -sy) if sx or sy else geom
 
     surfaces = [
         SurfaceMesh(f"Road_{p.road_id}", p.road_id, p.vertices - shift, p.faces) for p in built
@@ -402,40 +927,48 @@ def build_import(
             canon = _CANONICAL.get(ltype.lower())
             if canon in lane_area:
                 lane_area[canon] += float(poly.area)
-    surface_polys = [shapely.affinity.translate(g, -sx, -sy) for g in surface_polys]
+    surface_polys = [moved(g) for g in surface_polys]
     tree = shapely.STRtree(surface_polys)
 
     targets: list[AreaRings] = []
-    for p in built:
+    tick = Ticker(progress, "targets", len(built))
+    for k, p in enumerate(built):
         verts = p.vertices - shift
         for t in types:
             polys = [g for lt, g in p.lanes if lt.lower() == t.lower() and not g.is_empty]
             if not polys:
                 continue
-            union = shapely.affinity.translate(shapely.union_all(polys), -sx, -sy)
+            union = moved(shapely.union_all(polys))
             region = _clean(union, MIN_TARGET_PART_M2, MIN_TARGET_PART_M2)
             rings2 = _rings(region)
             if not rings2:
                 continue
             rings = [np.column_stack([r, _surface_z(verts, p.faces, r)]) for r in rings2]
-            targets.append(
-                AreaRings(f"Target_{t}_road{p.road_id}", p.road_id, (t,), rings, float(region.area))
+            area = AreaRings(
+                f"Target_{t}_road{p.road_id}", p.road_id, (t,), rings, float(region.area)
             )
+            _check_target(area, path)
+            targets.append(area)
+        tick(k + 1)
+    tick.done()
 
     z_min = float(min(s.vertices[:, 2].min() for s in surfaces))
     ground_z = z_min - GROUND_BELOW_M
     bands: list[tuple[_RoadParts, Polygon | MultiPolygon]] = []
-    for p in built:
-        raw = _band(p, inner, outer)
+    tick = Ticker(progress, "sensor areas", len(built))
+    for k, p in enumerate(built):
+        raw = _band(p, inner, outer, tangles, path)
+        tick(k + 1)
         if raw.is_empty:
             continue
-        raw = shapely.affinity.translate(raw, -sx, -sy)
+        raw = moved(raw)
         near = tree.query(raw, predicate="intersects")
         if len(near):
-            raw = raw.difference(shapely.union_all([surface_polys[int(k)] for k in near]))
+            raw = raw.difference(shapely.union_all([surface_polys[int(j)] for j in near]))
         region = _clean(raw, MIN_SENSOR_PART_M2, MIN_TARGET_PART_M2)
         if not region.is_empty:
             bands.append((p, region))
+    tick.done()
     sensor_areas = []
     for p, region in bands:
         if terrain == "flat":
@@ -461,6 +994,12 @@ def build_import(
     ox, oy, oz, oh = network.offset or (0.0, 0.0, 0.0, 0.0)
     c, s_ = math.cos(oh), math.sin(oh)
     crs_offset = (ox + c * sx - s_ * sy, oy + s_ * sx + c * sy, oz + float(shift[2]), oh)
+    if max(abs(v) for v in crs_offset[:3]) > MAX_OFFSET_M:
+        raise InputError(
+            f"{path}: the header's <offset> with the import's shift places the scene at "
+            f"({crs_offset[0]:g}, {crs_offset[1]:g}, {crs_offset[2]:g}) m, beyond the "
+            f"{MAX_OFFSET_M:g} m a scene's offset may be"
+        )
     return ImportedNetwork(
         surfaces=surfaces,
         ground=ground,

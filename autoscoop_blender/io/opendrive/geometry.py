@@ -37,6 +37,9 @@ _GL_X = (_GL_X + 1.0) / 2.0
 _GL_W = _GL_W / 2.0
 # Fresnel arguments beyond this lose digits: the heading is integrated instead.
 _FRESNEL_MAX_ARG = 1.0e3
+# Cells of a poly3 arc-length table: 4,096 keeps a 200 m record at the 5 cm cells it
+# has always had, and bounds the work of a record thousands of kilometres long.
+_TABLE_CELLS = 4096
 
 
 def eval_polys(records: Sequence[Poly], s: F64, base: float = 0.0) -> F64:
@@ -52,6 +55,18 @@ def eval_polys(records: Sequence[Poly], s: F64, base: float = 0.0) -> F64:
     return coef[..., 0] + ds * (coef[..., 1] + ds * (coef[..., 2] + ds * coef[..., 3]))
 
 
+def eval_poly_slopes(records: Sequence[Poly], s: F64, base: float = 0.0) -> F64:
+    """d/ds of the piecewise cubic at s (m/m for an elevation), as ``eval_polys``."""
+    s = np.asarray(s, dtype=np.float64)
+    if not records:
+        return np.zeros_like(s)
+    starts = np.array([r.s + base for r in records])
+    idx = np.clip(np.searchsorted(starts, s, side="right") - 1, 0, len(records) - 1)
+    coef = np.array([(r.a, r.b, r.c, r.d) for r in records])[idx]
+    ds = s - starts[idx]
+    return coef[..., 1] + ds * (2.0 * coef[..., 2] + ds * 3.0 * coef[..., 3])
+
+
 def _cubic(c: Sequence[float], p: F64) -> F64:
     return c[0] + p * (c[1] + p * (c[2] + p * c[3]))
 
@@ -60,12 +75,15 @@ def _dcubic(c: Sequence[float], p: F64) -> F64:
     return c[1] + p * (2.0 * c[2] + p * 3.0 * c[3])
 
 
-def _spiral_by_quadrature(k0: float, dk: float, length: float, ds: F64) -> tuple[F64, F64]:
+def _spiral_by_quadrature(k0: float, dk: float, ds: F64) -> tuple[F64, F64]:
     """(x, y) of a clothoid from the origin with heading 0, by 8-point Gauss-Legendre
-    over cells in which the heading turns at most 0.1 rad."""
-    turn = abs(k0) * length + 0.5 * abs(dk) * length**2
-    n = int(min(max(np.ceil(turn / 0.1), np.ceil(length / 50.0), 1), 100_000))
-    edges = np.linspace(0.0, length, n + 1)
+    over cells in which the heading turns at most 0.1 rad. The cells cover what is
+    asked for (0 to the largest ds), not the record's length: a record may be far
+    longer than the road that uses it, or end before the next one starts."""
+    span = float(np.max(ds, initial=0.0))
+    turn = abs(k0) * span + 0.5 * abs(dk) * span**2
+    n = int(min(max(np.ceil(turn / 0.1), np.ceil(span / 50.0), 1), 100_000))
+    edges = np.linspace(0.0, max(span, 1e-9), n + 1)
 
     def heading(u: F64) -> F64:
         return k0 * u + 0.5 * dk * u * u
@@ -97,7 +115,7 @@ def _spiral(k0: float, k1: float, length: float, ds: F64) -> tuple[F64, F64, F64
     t0 = u0 / scale
     t1 = (ds + u0) / scale
     if max(abs(t0), float(np.max(np.abs(t1), initial=0.0))) > _FRESNEL_MAX_ARG:
-        x, y = _spiral_by_quadrature(k0, dk, length, ds)
+        x, y = _spiral_by_quadrature(k0, dk, ds)
         return x, y, head
     # heading = phi0 + (dk/2) (u + u0)^2 = phi0 + sigma * pi/2 * t^2
     sigma = np.sign(dk)
@@ -116,23 +134,24 @@ class ReferenceLine:
     def __init__(self, geometries: Sequence[Geometry]):
         self.geometries = list(geometries)
         self.starts = np.array([g.s for g in self.geometries])
+        # poly3 arc-length tables, made when first needed (most roads have none).
         self._tables: dict[int, tuple[F64, F64]] = {}
-        for k, g in enumerate(self.geometries):
-            if g.kind == "poly3":
-                self._tables[k] = self._arc_length_table(g)
 
     @staticmethod
     def _arc_length_table(g: Geometry) -> tuple[F64, F64]:
-        """(s, u) pairs of a poly3: arc length along v(u) by Gauss-Legendre per cell."""
+        """(s, u) pairs of a poly3: arc length along v(u) by Gauss-Legendre per cell.
+        At most ``_TABLE_CELLS`` cells: 8-point Gauss-Legendre is exact for the
+        smooth speed of a cubic on cells far wider than the 5 cm kept for short ones."""
         coef = g.params
         # u runs at most the arc length; extend a little so the table covers the end.
         u_max = max(g.length, 1e-9) * 1.05 + 1.0
-        n = int(min(max(np.ceil(u_max / 0.05), 64), 200_000))
+        n = int(min(max(np.ceil(u_max / 0.05), 64), _TABLE_CELLS))
         edges = np.linspace(0.0, u_max, n + 1)
         a, b = edges[:-1], edges[1:]
         u = a[:, None] + (b - a)[:, None] * _GL_X[None, :]
-        speed = np.sqrt(1.0 + _dcubic(coef, u) ** 2)
-        cells = (speed * (b - a)[:, None] * _GL_W[None, :]).sum(axis=1)
+        with np.errstate(over="ignore", invalid="ignore"):
+            speed = np.sqrt(1.0 + _dcubic(coef, u) ** 2)
+            cells = (speed * (b - a)[:, None] * _GL_W[None, :]).sum(axis=1)
         s_tab = np.concatenate([[0.0], np.cumsum(cells)])
         return s_tab, edges
 
@@ -146,6 +165,8 @@ class ReferenceLine:
         if g.kind == "spiral":
             return _spiral(p[0], p[1], g.length, ds)
         if g.kind == "poly3":
+            if k not in self._tables:
+                self._tables[k] = self._arc_length_table(g)
             s_tab, u_tab = self._tables[k]
             u = np.interp(ds, s_tab, u_tab)
             return u, _cubic(p, u), np.arctan(_dcubic(p, u))
@@ -154,23 +175,95 @@ class ReferenceLine:
         cu, cv = p[0:4], p[4:8]
         return _cubic(cu, q), _cubic(cv, q), np.arctan2(_dcubic(cv, q), _dcubic(cu, q))
 
-    def evaluate(self, s: F64) -> tuple[F64, F64, F64]:
+    def index(self, s: F64, before: bool = False) -> NDArray[np.intp]:
+        """The geometry each s falls in: the last one starting at or before s (strictly
+        before with ``before``: an s where a geometry starts then belongs to the one
+        that ends there). Before the first start, the first."""
+        if before:
+            k = np.searchsorted(self.starts, s, side="left") - 1
+        else:
+            k = np.searchsorted(self.starts, s, side="right") - 1
+        out: NDArray[np.intp] = np.clip(k, 0, len(self.starts) - 1)
+        return out
+
+    def evaluate(self, s: F64, before: bool = False) -> tuple[F64, F64, F64]:
         """x, y, heading of the reference line at s (beyond a geometry's end the
-        last one that starts before s is extended)."""
+        last one that starts before s is extended; ``before``: see ``index``)."""
         s = np.asarray(s, dtype=np.float64)
-        idx = np.clip(np.searchsorted(self.starts, s, side="right") - 1, 0, len(self.starts) - 1)
+        idx = self.index(s, before)
         x = np.empty_like(s)
         y = np.empty_like(s)
         h = np.empty_like(s)
-        for k in np.unique(idx):
-            sel = idx == k
-            g = self.geometries[int(k)]
-            u, v, dh = self._local(int(k), s[sel] - g.s)
-            c, sn = np.cos(g.hdg), np.sin(g.hdg)
-            x[sel] = g.x + c * u - sn * v
-            y[sel] = g.y + sn * u + c * v
-            h[sel] = g.hdg + dh
+        with np.errstate(over="ignore", invalid="ignore"):
+            for k in np.unique(idx):
+                sel = idx == k
+                g = self.geometries[int(k)]
+                u, v, dh = self._local(int(k), s[sel] - g.s)
+                c, sn = np.cos(g.hdg), np.sin(g.hdg)
+                x[sel] = g.x + c * u - sn * v
+                y[sel] = g.y + sn * u + c * v
+                h[sel] = g.hdg + dh
         return x, y, h
+
+    def jumps(self) -> list[tuple[float, float]]:
+        """(s, metres) where a geometry starts away from where the one before it
+        arrives at that s (its end point, or its extension when the next starts
+        later): a gap in the planView. NaN metres where either is not finite."""
+        if len(self.geometries) < 2:
+            return []
+        x, y, _ = self.evaluate(self.starts[1:], before=True)
+        gx = np.array([g.x for g in self.geometries[1:]])
+        gy = np.array([g.y for g in self.geometries[1:]])
+        with np.errstate(over="ignore", invalid="ignore"):
+            gap = np.hypot(x - gx, y - gy)
+        return list(zip(self.starts[1:].tolist(), gap.tolist(), strict=True))
+
+    def turns(self, a: F64, b: F64) -> F64:
+        """How far the heading turns (rad, summed absolute) from a to b, for cuts
+        [a_i, b_i] that each lie within one geometry (the one ``index(a_i)`` names).
+
+        Exact for lines, arcs and spirals (the integral of |curvature|); for poly3 and
+        paramPoly3 the heading is sampled at least every 0.5 m (8 to 4,000 points a
+        cut) and its steps are summed, as a heading that turns back and forth counts
+        every turn.
+        """
+        a = np.asarray(a, dtype=np.float64)
+        b = np.asarray(b, dtype=np.float64)
+        out = np.zeros_like(a)
+        idx = self.index(a)
+        with np.errstate(over="ignore", invalid="ignore"):
+            for k in np.unique(idx):
+                sel = np.flatnonzero(idx == k)
+                g = self.geometries[int(k)]
+                if g.kind == "line":
+                    continue
+                if g.kind in ("arc", "spiral"):
+                    k0 = g.params[0]
+                    k1 = g.params[1] if g.kind == "spiral" else k0
+                    dk = (k1 - k0) / g.length if g.length > 0 else 0.0
+                    out[sel] = _abs_linear_integral(
+                        k0 + dk * (a[sel] - g.s), k0 + dk * (b[sel] - g.s), b[sel] - a[sel]
+                    )
+                    continue
+                for i in sel:
+                    m = int(np.clip(np.ceil((b[i] - a[i]) / 0.5), 8, 4000))
+                    grid = np.linspace(a[i], b[i], m + 1)
+                    _, _, h = self._local(int(k), grid - g.s)
+                    step = np.diff(h)
+                    # Wrapped into (-pi, pi]: a heading from arctan2 jumps by 2 pi.
+                    step = (step + np.pi) % (2.0 * np.pi) - np.pi
+                    out[i] = float(np.abs(step).sum())
+        return out
+
+
+def _abs_linear_integral(f0: F64, f1: F64, length: F64) -> F64:
+    """The integral of |f| over a cut of ``length`` where f runs linearly f0 -> f1."""
+    same = f0 * f1 >= 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # A sign change: two triangles, f0^2 + f1^2 over 2 |f1 - f0|, times the length.
+        cross = (f0 * f0 + f1 * f1) / (2.0 * np.abs(f1 - f0)) * length
+    out: F64 = np.where(same, 0.5 * np.abs(f0 + f1) * length, cross)
+    return out
 
 
 def lane_width(lane: Lane, section_s: float, s: F64) -> F64:
@@ -209,18 +302,33 @@ def section_borders(
     return borders, faults
 
 
-def second_derivative_bound(records: Sequence[Poly], lo: float, hi: float, base: float) -> float:
-    """A bound of |f''| on [lo, hi] for the records active there."""
-    if not records:
-        return 0.0
-    starts = [r.s + base for r in records]
-    bound = 0.0
-    for k, r in enumerate(records):
-        end = starts[k + 1] if k + 1 < len(records) else np.inf
-        if end <= lo and k + 1 < len(records):
-            continue
-        if starts[k] >= hi and k > 0:
-            continue
-        span = max(abs(hi - starts[k]), abs(lo - starts[k]))
-        bound = max(bound, 2.0 * abs(r.c) + 6.0 * abs(r.d) * span)
+def second_derivative_bounds(records: Sequence[Poly], lo: F64, hi: F64, base: float) -> F64:
+    """A bound of |f''| on each cut [lo_i, hi_i] from the records active there:
+    2 |c| + 6 |d| times the farthest distance from the record's start (inf where
+    that overflows)."""
+    lo = np.asarray(lo, dtype=np.float64)
+    hi = np.asarray(hi, dtype=np.float64)
+    if not any(r.c or r.d for r in records):  # linear or none: no bend
+        return np.zeros_like(lo)
+    starts = np.array([r.s + base for r in records])
+    c2 = np.array([2.0 * abs(r.c) for r in records])
+    d6 = np.array([6.0 * abs(r.d) for r in records])
+    last = len(records) - 1
+    # The records that reach into the cut: from the one active at lo to the last one
+    # starting before hi (the same one, unless records start within a cut).
+    k_lo = np.clip(np.searchsorted(starts, lo, side="right") - 1, 0, last)
+    k_hi = np.maximum(np.clip(np.searchsorted(starts, hi, side="left") - 1, 0, last), k_lo)
+
+    def at(k: NDArray[np.intp], a: F64, b: F64) -> F64:
+        span = np.maximum(np.abs(b - starts[k]), np.abs(a - starts[k]))
+        with np.errstate(over="ignore", invalid="ignore"):
+            out: F64 = c2[k] + d6[k] * span
+        out[np.isnan(out)] = np.inf  # 0 x inf: a span or coefficient overflowed
+        return out
+
+    bound = np.maximum(at(k_lo, lo, hi), at(k_hi, lo, hi))
+    for i in np.flatnonzero(k_hi - k_lo > 1):  # rare: records closer than a cut
+        ks = np.arange(k_lo[i] + 1, k_hi[i])
+        more = at(ks, np.full(len(ks), lo[i]), np.full(len(ks), hi[i]))
+        bound[i] = max(bound[i], float(more.max()))
     return bound

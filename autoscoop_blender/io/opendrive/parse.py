@@ -1,10 +1,12 @@
 """Reading a .xodr file into plain records (no geometry is evaluated here).
 
-Every fault of the file itself (not XML, not OpenDRIVE, no road) is a one-line
-``InputError``; a fault of one road (a record that does not parse, an unknown
-geometry, an extreme spiral) is a one-line warning naming the road, and the road is
-left out. Junction connections that name a road the file does not have are warned
-about and otherwise ignored (connecting roads are built like every other road).
+Every fault of the file itself (not XML, not OpenDRIVE, no road, too big to import,
+no road that can be used) is a one-line ``InputError``; a fault of one road (a record
+that does not parse or is not finite, an unknown geometry, an extreme spiral) is a
+one-line warning naming the road, and the road is left out. When every road is left
+out, the error names them and why. Junction connections that name a road the file
+does not have are warned about and otherwise ignored (connecting roads are built like
+every other road).
 """
 
 from __future__ import annotations
@@ -12,12 +14,25 @@ from __future__ import annotations
 import math
 import os
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from ...core.errors import InputError
+from .progress import Progress, Ticker
 
 # A curvature beyond this (a radius under 0.5 m) is no road: the road is skipped.
 MAX_CURVATURE = 2.0
+# The largest file read: xml.etree holds about 15 bytes per byte of file (830 MB peak
+# for a 54 MB file of 90,000 roads, measured), so 256 MiB is some 4 GB in memory. The
+# real files of tests/data/xodr are at most 2 MB.
+MAX_FILE_BYTES = 256 << 20
+# The most roads an import takes. Each road becomes three Blender objects (a mesh and
+# two curves), measured at about 1 ms a road in Blender besides about 1 ms of reading
+# and geometry: 20,000 roads are about a minute (Town04, 242 roads, is 1.5 s). A file
+# with more is refused right after the XML is read, before any road is looked at.
+MAX_ROADS = 20_000
+# Reasons shown when every road was skipped; the rest are counted.
+SHOWN_REASONS = 3
 
 GEOMETRY_KINDS = ("line", "arc", "spiral", "poly3", "paramPoly3")
 
@@ -201,6 +216,8 @@ def _lanes(side: ET.Element | None, sign: int) -> tuple[Lane, ...]:
 
 def _road(el: ET.Element, road_id: str) -> Road:
     length = _num(el, "length")
+    if length < 0:
+        raise _RoadFault(f"length {length:g} m is negative")
     plan = el.find("planView")
     geoms = [_geometry(g) for g in plan.findall("geometry")] if plan is not None else []
     if not geoms:
@@ -253,28 +270,73 @@ def _header(root: ET.Element) -> tuple[str | None, tuple[float, float, float, fl
     return text or None, offset
 
 
-def read_opendrive(path: str | os.PathLike[str]) -> OpenDriveNetwork:
+def skipped_reasons(warnings: Sequence[str]) -> str:
+    """The first ``SHOWN_REASONS`` warnings about skipped roads, without their
+    "; road skipped", joined by "; " (and how many more): for a one-line error."""
+    skipped = [w for w in warnings if w.startswith("road ") and w.endswith("skipped")]
+    reasons = [w.removesuffix("; road skipped").removesuffix("; skipped") for w in skipped]
+    text = "; ".join(reasons[:SHOWN_REASONS])
+    if len(reasons) > SHOWN_REASONS:
+        text += f" (and {len(reasons) - SHOWN_REASONS:,} more)"
+    return text
+
+
+def _parse_xml(name: str, progress: Progress | None) -> ET.Element:
+    """The root element; read in 1 MiB pieces so a big file reports progress."""
+    try:
+        size = os.path.getsize(name)
+    except OSError as exc:
+        raise InputError(f"{name}: cannot be read ({exc.strerror or exc})") from None
+    if size > MAX_FILE_BYTES:
+        raise InputError(
+            f"{name}: {size / 2**20:,.0f} MiB is more than the {MAX_FILE_BYTES >> 20} MiB "
+            "an import reads (its XML tree would take about 15 times that in memory)"
+        )
+    tick = Ticker(progress, "reading", size)
+    parser = ET.XMLParser()
+    done = 0
+    try:
+        with open(name, "rb") as fh:
+            while chunk := fh.read(1 << 20):
+                parser.feed(chunk)
+                done += len(chunk)
+                tick(done)
+            root = parser.close()
+        tick.done()
+        return root
+    except OSError as exc:
+        raise InputError(f"{name}: cannot be read ({exc.strerror or exc})") from None
+    except ET.ParseError as exc:
+        raise InputError(f"{name}: not an OpenDRIVE file (not XML: {exc})") from None
+
+
+def read_opendrive(
+    path: str | os.PathLike[str], progress: Progress | None = None
+) -> OpenDriveNetwork:
     """Parse an OpenDRIVE file. One-line ``InputError`` "<path>: <problem>" when the
-    file cannot be used at all; per-road faults become warnings and skip the road."""
+    file cannot be used at all (also: beyond ``MAX_FILE_BYTES`` or ``MAX_ROADS``, or
+    no road usable: then the error names the first roads and why); per-road faults
+    become warnings and skip the road. ``progress(stage, done, total)`` is called
+    while the file is read ("reading", bytes) and its roads parsed ("parsing", roads).
+    """
     name = os.fspath(path)
     if not os.path.exists(name):
         raise InputError(f"{name}: no such file")
     if os.path.isdir(name):
         raise InputError(f"{name}: is a directory, not an OpenDRIVE file")
-    try:
-        with open(name, "rb") as fh:
-            data = fh.read()
-    except OSError as exc:
-        raise InputError(f"{name}: cannot be read ({exc.strerror or exc})") from None
-    try:
-        root = ET.fromstring(data)
-    except ET.ParseError as exc:
-        raise InputError(f"{name}: not an OpenDRIVE file (not XML: {exc})") from None
+    root = _parse_xml(name, progress)
     tag = root.tag.rpartition("}")[2]
     if tag != "OpenDRIVE":
         raise InputError(f"{name}: not an OpenDRIVE file (root element <{tag}>)")
-    if root.find("road") is None:
+    road_els = root.findall("road")
+    if not road_els:
         raise InputError(f"{name}: the OpenDRIVE file has no <road>")
+    if len(road_els) > MAX_ROADS:
+        raise InputError(
+            f"{name}: {len(road_els):,} roads are more than the {MAX_ROADS:,} an import "
+            "takes (each becomes a mesh and two curves in Blender, about a minute per "
+            f"{MAX_ROADS:,}); split the file"
+        )
     try:
         geo, offset = _header(root)
     except InputError as exc:
@@ -282,8 +344,9 @@ def read_opendrive(path: str | os.PathLike[str]) -> OpenDriveNetwork:
     warnings: list[str] = []
     roads: list[Road] = []
     seen: set[str] = set()
-    all_ids = {r.get("id", "") for r in root.findall("road")}
-    for k, el in enumerate(root.findall("road")):
+    all_ids = {r.get("id", "") for r in road_els}
+    tick = Ticker(progress, "parsing", len(road_els))
+    for k, el in enumerate(road_els):
         road_id = el.get("id") or f"#{k}"
         if road_id in seen:
             warnings.append(f"road {road_id}: a second road with this id; skipped")
@@ -293,6 +356,9 @@ def read_opendrive(path: str | os.PathLike[str]) -> OpenDriveNetwork:
             roads.append(_road(el, road_id))
         except _RoadFault as exc:
             warnings.append(f"road {road_id}: {exc}; road skipped")
+        tick(k + 1)
+    if not roads:
+        raise InputError(f"{name}: no road could be used: {skipped_reasons(warnings)}")
     junction_roads: dict[str, list[str]] = {}
     for junc in root.findall("junction"):
         jid = junc.get("id", "?")
@@ -309,4 +375,5 @@ def read_opendrive(path: str | os.PathLike[str]) -> OpenDriveNetwork:
                     )
                 elif attr == "connectingRoad" and rid not in members:
                     members.append(rid)
+    tick.done()
     return OpenDriveNetwork(name, roads, geo, offset, warnings, junction_roads)
