@@ -2,6 +2,7 @@
 # AutoSCOOP developer entry: sets up .venv (Python 3.11, bpy 5.0.1, pinned requirements.txt)
 # once, then runs the job asked for.
 #   ./dev.sh demo   the main job (optimize the bundled sample scene), results in out/
+#                   (replacing an earlier demo's)
 #   ./dev.sh test   the test suite on bpy 5.0.1 / Python 3.11, then the extension, core and
 #                   packaging tests on bpy 5.2.3 / Python 3.13 in .venv-py313 (skipped, with
 #                   a message, when no Python 3.13 is found; PYTHON313= names one).
@@ -71,7 +72,8 @@ case "${1:-}" in
     demo)
         setup .venv "$PY" requirements.txt
         shift
-        exec .venv/bin/python -m headless optimize "$@"
+        # out/ is the demo's own folder: an earlier demo's results are replaced.
+        exec .venv/bin/python -m headless optimize --overwrite "$@"
         ;;
     test)
         setup .venv "$PY" requirements.txt

@@ -711,6 +711,7 @@ def default_vs_paper(paper_dir: Path, seed: int, out_dir: Path) -> dict[str, Any
         "es",
         "--out-dir",
         str(where),
+        "--overwrite",  # the bench's own folder, from an earlier bench run
         "--seed",
         str(seed),
     ]

@@ -96,8 +96,9 @@ def test_warnings_do_not_stop_the_job(tmp_path, sensors_file, blend_file):
         b.curve("SensorArea", [b.rect(-12, -4, -4, 4)])
 
     code, _, stderr = run_headless(
-        "coverage", blend_file(empty), "--sensors", sensors_file(TWO_SENSORS), "--out", out
-    )
+        "coverage", blend_file(empty), "--sensors", sensors_file(TWO_SENSORS), "--out", out,
+        "--overwrite",
+    )  # fmt: skip
     assert code == 0 and "flat nothing" in stderr
 
 

@@ -58,7 +58,7 @@ def test_a_checkpoint_made_without_them_is_refused(tmp_path, sensors_file):
     existing = sensors_file({"model": scratch["model"], "sensors": given})
     code, _, stderr = run_headless(
         "optimize", SAMPLES / "flat_wall.blend", *_goal(tmp_path), "--out-dir", out,
-        "--existing", existing, "--resume",
+        "--existing", existing, "--resume", "--overwrite",
     )  # fmt: skip
     assert code != 0
     assert "made with different existing sensors; run without --resume" in stderr
@@ -90,3 +90,44 @@ def test_a_mast_entry_without_y_is_refused_in_one_line(tmp_path, sensors_file):
     )
     assert code == 2
     assert stderr.strip() == "error: masts.json: mast 1: missing y"
+
+
+def test_another_grounds_plan_is_warned_of_and_still_counted(tmp_path, blend_file):
+    """A result.json planned for other target areas (its targets_fingerprint), and
+    sensors standing outside every sensor area: each a warning, as coverage gives."""
+    plan = tmp_path / "plan"
+    scratch = _optimize(plan)
+    code, _, same = run_headless(
+        "optimize", SAMPLES / "flat_wall.blend", *_goal(tmp_path), "--out-dir",
+        tmp_path / "again", "--existing", plan / "result.json",
+    )  # fmt: skip
+    assert code == 0 and "--existing" not in same, same
+
+    def moved(b):  # flat_wall's areas, the target 10 m further east: another ground
+        b.curve("Target_Area", [b.rect(10, -25, 60, 25)])
+        b.curve("SensorArea_1", [b.rect(-12, -4, -4, 4)])
+        b.plane("Ground", -60, -60, 80, 60)
+
+    other = blend_file(moved)
+    code, _, stderr = run_headless(
+        "optimize", other, *_goal(tmp_path), "--out-dir", tmp_path / "other",
+        "--existing", plan / "result.json",
+    )  # fmt: skip
+    warned = [line for line in stderr.splitlines() if line.startswith("warning: --existing")]
+    assert warned == [
+        f"warning: --existing {plan / 'result.json'}: planned for other target areas than "
+        "scene.blend's (its targets_fingerprint differs): is it this ground's plan?"
+    ], stderr
+    assert code in (0, 3)
+    doc = json.loads((tmp_path / "other" / "result.json").read_text())
+    assert doc["metrics"]["existing_sensors"] == len(scratch["sensors"])
+
+    code, _, stderr = run_headless(
+        "optimize", SAMPLES / "flat_wall.blend", *_goal(tmp_path), "--out-dir",
+        tmp_path / "far", "--existing", SAMPLES / "two_routes_sensors.json",
+    )  # fmt: skip
+    assert (
+        f"warning: --existing {SAMPLES / 'two_routes_sensors.json'}: 18 of its 18 sensor(s) "
+        "stand outside every sensor area of flat_wall.blend; they are counted as standing "
+        "all the same"
+    ) in stderr.splitlines(), stderr

@@ -86,10 +86,15 @@ def test_no_crs_writes_the_local_file_only_and_says_so(tmp_path):
     cfg.write_text(SMALL)
     out = tmp_path / "out"
     out.mkdir()
-    # An earlier georeferenced run's files would not be this plan's: they go.
+    # An earlier georeferenced run's files would not be this plan's: replacing that
+    # run's results (--overwrite), they go.
     (out / "sensors.geojson").write_text("{}")
     (out / "plan.gpkg").write_bytes(b"old")
     code, _, stderr = run_headless("optimize", FLAT, "--config", cfg, "--out-dir", out)
+    assert code == 2 and "plan.gpkg: exist already; --overwrite replaces them" in stderr
+    code, _, stderr = run_headless(
+        "optimize", FLAT, "--config", cfg, "--out-dir", out, "--overwrite"
+    )
     assert code == 0, stderr
     notes = [ln for ln in stderr.splitlines() if ln.startswith("note:")]
     assert any(names.CRS_PROP in ln and "sensors_local.geojson" in ln for ln in notes), stderr

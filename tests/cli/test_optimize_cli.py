@@ -206,17 +206,21 @@ def test_resume_after_an_interruption(tmp_path):
     whole = (out / "sensors.csv").read_text()
     lines = (out / "checkpoint.jsonl").read_text().splitlines()
     assert len(lines) >= 3
-    # As if the run had been cut off after the first sensor, mid-write of the next.
+    # As if the run had been cut off after the first sensor, mid-write of the next:
+    # no result file written yet.
     (out / "checkpoint.jsonl").write_text(lines[0] + "\n" + lines[1] + "\n" + lines[2][:20])
-    (out / "sensors.csv").unlink()
+    for name in ("result.json", "sensors.csv", "coverage.png", "result.blend"):
+        (out / name).unlink()
+    (out / "sensors_local.geojson").unlink()
     code, _, stderr = run_headless("optimize", FLAT, "--config", cfg, "--out-dir", out, "--resume")
     assert code == 0, stderr
     assert "resuming after 1 fixed sensor" in stderr
     assert (out / "sensors.csv").read_text() == whole
 
     code, _, stderr = run_headless(
-        "optimize", FLAT, "--config", cfg, "--out-dir", out, "--resume", "--seed", "5"
-    )
+        "optimize", FLAT, "--config", cfg, "--out-dir", out, "--resume", "--seed", "5",
+        "--overwrite",
+    )  # fmt: skip
     assert code == 2 and "different settings" in stderr
 
 

@@ -81,3 +81,36 @@ def test_the_grid_carries_each_target_areas_requirements():
     again = GroundGrid.from_arrays(grid.arrays(), BoxCaster(ground_z=0.0))
     # Cells are ordered by x first: the junction's, then the lane's; so in a worker.
     assert list(again.region_kind[again.target_region]) == [-1] * 16 + [1] * 8
+
+
+def test_targets_fingerprint_names_the_targets_in_world_metres():
+    """The same targets give the same fingerprint whatever the occluders, the sensor
+    areas or the local origin (the world coordinates are what count); another name,
+    a target moved by 0.1 m or one more target give another."""
+    from dataclasses import replace
+
+    import shapely
+
+    from tests.core.flat import flat_scene
+
+    base = flat_scene(target=(0, 0, 50, 20)).targets_fingerprint()
+    assert len(base) == 16 and int(base, 16) >= 0
+    with_box = flat_scene(target=(0, 0, 50, 20), boxes=[((5, 5, 0), (6, 6, 3))])
+    assert with_box.targets_fingerprint() == base
+    assert flat_scene(target=(0, 0, 50, 20), sensor=(-9, -9, -5, -5)).targets_fingerprint() == base
+    # Local coordinates 1000 m west of an origin at (1000, 0): the same world place.
+    shifted = flat_scene(target=(-1000, 0, -950, 20))
+    shifted = replace(shifted, origin=np.array([1000.0, 0.0, 0.0]))
+    assert shifted.targets_fingerprint() == base
+    assert flat_scene(target=(0.1, 0, 50.1, 20)).targets_fingerprint() != base
+    scene = flat_scene(target=(0, 0, 50, 20))
+    renamed = replace(scene, targets=(replace(scene.targets[0], name="Target_B"),))
+    assert renamed.targets_fingerprint() != base
+    more = replace(
+        scene,
+        targets=(
+            *scene.targets,
+            replace(scene.targets[0], name="T2", geometry=shapely.box(60, 0, 70, 5)),
+        ),
+    )
+    assert more.targets_fingerprint() != base
