@@ -26,6 +26,7 @@ import os
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import reduce
 from pathlib import Path
 
 import bpy
@@ -35,7 +36,6 @@ from numpy.typing import NDArray
 
 from .. import names
 from ..core.errors import InputError, SceneContractError
-from ..core.model.scene import area_from_rings
 from ..core.model.sensors import MAX_RANGE_M
 from ..io.georef import check_crs
 from ..io.opendrive import AreaRings, SurfaceMesh, build_import, read_opendrive
@@ -189,10 +189,16 @@ def import_xodr(
 
 
 def _union_m2(areas: Sequence[AreaRings]) -> float:
-    """Plan area of the areas together, m^2 (each area's rings even-odd)."""
+    """Plan area of the areas together, m^2 (each area's rings even-odd, as
+    ``area_from_rings`` reads them; the import made every ring simple, so its checks,
+    30 times the cost, are skipped: 20,000 areas took 30 s with them)."""
     if not areas:
         return 0.0
-    return float(shapely.union_all([area_from_rings(a.name, a.rings) for a in areas]).area)
+    polys = [
+        reduce(shapely.symmetric_difference, [shapely.Polygon(r[:, :2]) for r in a.rings])
+        for a in areas
+    ]
+    return float(shapely.union_all(polys).area)
 
 
 def _usable_crs(text: str | None, file: str, warnings: list[str]) -> str | None:

@@ -253,11 +253,12 @@ def _steps(road: Road, ref: ReferenceLine, sec: LaneSection, cuts: F64) -> tuple
         bound = bound + half * second_derivative_bounds(road.superelevation, a, b, 0.0)
         for lane in (*sec.left, *sec.right):
             bound = bound + second_derivative_bounds(lane.widths or lane.borders, a, b, sec.s)
-        bound = np.nan_to_num(bound, nan=np.inf)
+        bound[np.isnan(bound)] = np.inf  # inf x 0: a profile overflowed
         by_length = np.ceil(length / MAX_STEP)
-        by_turn = np.nan_to_num(np.ceil(turn / MAX_TURN), nan=np.inf)
+        by_turn = np.ceil(turn / MAX_TURN)
+        by_turn[np.isnan(by_turn)] = np.inf
         by_chord = np.where(bound > 0, np.ceil(length / np.sqrt(8.0 * CHORD_TOL / bound)), 0.0)
-    by_chord = np.nan_to_num(by_chord, nan=np.inf)
+        by_chord[np.isnan(by_chord)] = np.inf
     n = np.maximum(np.maximum(1.0, by_length), np.maximum(by_turn, by_chord))
     k = int(np.argmax(n))
     if by_chord[k] >= n[k] and by_chord[k] > by_turn[k]:
@@ -400,11 +401,11 @@ def _plan_road(road: Road, outer: float, warnings: list[str]) -> _RoadPlan | Non
                 f"profiles) make more stations than the {MAX_ROAD_STATIONS:,} a road may "
                 "have"
             )
-        _, faults = section_borders(road, sec, cuts[:1])
-        if faults:
-            lane_id, why = next(iter(faults.items()))
+        mixed = [ln.id for ln in (*sec.left, *sec.right) if ln.widths and ln.borders]
+        if mixed:
             warnings.append(
-                f"road {rid}: lane {lane_id} in the lane section at s={s0:g} {why}; road skipped"
+                f"road {rid}: lane {mixed[0]} in the lane section at s={s0:g} has both "
+                "<width> and <border> records; road skipped"
             )
             return None
         n, why = _steps(road, ref, sec, cuts)
@@ -788,7 +789,9 @@ def _plan_all(
     tick = Ticker(progress, "sizing", len(network.roads))
     for k, road in enumerate(network.roads):
         try:
-            plan = _plan_road(road, outer, warnings)
+            # Overflows are expected of hostile numbers: every figure is checked after.
+            with np.errstate(all="ignore"):
+                plan = _plan_road(road, outer, warnings)
         except InputError as exc:
             raise InputError(f"{path}: {exc}") from None
         if plan is not None:

@@ -48,6 +48,11 @@ def eval_polys(records: Sequence[Poly], s: F64, base: float = 0.0) -> F64:
     s = np.asarray(s, dtype=np.float64)
     if not records:
         return np.zeros_like(s)
+    if len(records) == 1:  # most profiles: one record, the same arithmetic
+        r = records[0]
+        ds = s - (r.s + base)
+        out: F64 = r.a + ds * (r.b + ds * (r.c + ds * r.d))
+        return out
     starts = np.array([r.s + base for r in records])
     idx = np.clip(np.searchsorted(starts, s, side="right") - 1, 0, len(records) - 1)
     coef = np.array([(r.a, r.b, r.c, r.d) for r in records])[idx]

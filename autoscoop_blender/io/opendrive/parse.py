@@ -27,10 +27,11 @@ MAX_CURVATURE = 2.0
 # real files of tests/data/xodr are at most 2 MB.
 MAX_FILE_BYTES = 256 << 20
 # The most roads an import takes. Each road becomes three Blender objects (a mesh and
-# two curves), measured at about 1 ms a road in Blender besides about 1 ms of reading
-# and geometry: 20,000 roads are about a minute (Town04, 242 roads, is 1.5 s). A file
-# with more is refused right after the XML is read, before any road is looked at.
-MAX_ROADS = 20_000
+# two curves), and Blender makes each new object slower once a file holds some ten
+# thousand (measured: 10,000 roads' 30,000 objects in 10 s, 20,000 roads' in 90 s);
+# with reading and geometry, 10,000 small roads import in about 40 s. A file with
+# more is refused as soon as its XML is read, before any road is looked at.
+MAX_ROADS = 10_000
 # Reasons shown when every road was skipped; the rest are counted.
 SHOWN_REASONS = 3
 
@@ -334,8 +335,8 @@ def read_opendrive(
     if len(road_els) > MAX_ROADS:
         raise InputError(
             f"{name}: {len(road_els):,} roads are more than the {MAX_ROADS:,} an import "
-            "takes (each becomes a mesh and two curves in Blender, about a minute per "
-            f"{MAX_ROADS:,}); split the file"
+            "takes (each becomes a mesh and two curves in Blender, and more objects make "
+            "each new one slower: 20,000 roads take minutes); split the file"
         )
     try:
         geo, offset = _header(root)

@@ -29,6 +29,7 @@ class Ticker:
         self.total = total
         self.last = time.perf_counter()
         self.done_units = 0
+        self.reported = 0
         if progress is not None:
             progress(stage, 0, total)
 
@@ -40,9 +41,11 @@ class Ticker:
         now = time.perf_counter()
         if now - self.last >= INTERVAL_S:
             self.last = now
+            self.reported = done
             self.progress(self.stage, done, self.total)
 
     def done(self) -> None:
-        """The stage is finished: report ``total`` of ``total``."""
-        if self.progress is not None:
+        """The stage is finished: report ``total`` of ``total`` (once)."""
+        if self.progress is not None and self.reported != self.total:
+            self.reported = self.total
             self.progress(self.stage, self.total, self.total)
