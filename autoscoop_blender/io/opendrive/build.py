@@ -88,10 +88,13 @@ MAX_ROAD_LENGTH_M = 100_000.0
 # for a 100 km road turning through 2,500 rad; beyond, the rule is being asked to
 # follow a profile no road has (a width cubic with d = 1e6 asks for millions).
 MAX_ROAD_STATIONS = 50_000
-# Mesh points of the whole file (stations x lane borders, summed over lane sections):
-# Town04 has 20,000. Five million are about 120 MB of vertices and, measured, about
-# a minute of geometry; the memory of the import stays a few GB.
-MAX_POINTS = 5_000_000
+# Mesh points (stations x lane borders, summed over lane sections) of one road and of
+# the whole file. Town04 has 20,000 in all, 770 on its biggest road. A road of
+# 150,000 (a 100 km road of 14 lanes a side) is about 2 s of geometry, so progress is
+# heard every few seconds; a file of 3 million about a minute (measured: 47 roads of
+# 60 km, 20 lanes each, 2.96 million points, imported in 52 s at 1 GB peak).
+MAX_ROAD_POINTS = 150_000
+MAX_POINTS = 3_000_000
 # A lane wider than this is no lane (the widest proving-ground areas drawn as one lane,
 # vehicle-dynamics pads, are a few hundred metres across; Town04's widest lane is
 # under 10 m).
@@ -109,10 +112,13 @@ MAX_SUPERELEVATION_RAD = math.radians(MAX_RING_TILT_DEG)
 # A planView geometry starting farther than this from where the one before it ends is
 # a jump (warned; the lanes are cut there). The real files' largest is 1.5 mm.
 GAP_TOL_M = 0.1
-# Steps of lanes (and sensor bands) whose ring crosses itself, summed over the file:
-# each is made as a union of its steps, about 0.1 ms a step (measured 1.2 s for a
-# lane wound 95 times round a 1.7 m radius, 12,000 steps). 200,000 is some 20 s.
-MAX_TANGLED_STEPS = 200_000
+# Steps of lanes (and sensor bands) whose ring crosses itself, summed over the file,
+# checked before each is made. Merging the pieces of such a strip costs more the more
+# often it covers the same ground: 12,000 steps wound 95 times round a 1.7 m radius
+# take about 0.5 s a strip, 48,000 wound 380 times round 0.5 m about 2.5 s. 60,000
+# keep the worst to about 5 s and take the four strips (two lanes, two bands) of a
+# 1 km arc at curvature 0.6.
+MAX_TANGLED_STEPS = 60_000
 # Steps of such a strip made into one polygon before the pieces are merged: short
 # enough that a piece seldom crosses itself (a lane turning 3.2 rad), long enough to
 # keep the pieces few.
@@ -542,7 +548,10 @@ def _band_split(e: _Edge, inner: float, outer: float) -> F64 | None:
 
 
 def _strip_polygon(
-    a: F64, b: F64, split: Callable[[], F64 | None] | None = None
+    a: F64,
+    b: F64,
+    split: Callable[[], F64 | None] | None = None,
+    tangled: Callable[[int], None] | None = None,
 ) -> tuple[Polygon | MultiPolygon, bool]:
     """The plan region between borders a and b (N, 2, the same stations) and whether
     its ring crossed itself. An ordinary lane is the polygon of its ring. A ring that
@@ -552,10 +561,12 @@ def _strip_polygon(
     curvature (``split`` gives those points, (N, 2)), so that the pieces on each side
     are simple rings (exactly so on an arc). Never ``make_valid`` on the whole ring: on
     a ring wound a hundred times that ran for minutes, and its even-odd rule drops
-    ground covered twice."""
+    ground covered twice. ``tangled(steps)`` is told of such a strip first."""
     poly = Polygon(np.concatenate([a, b[::-1]]))
     if poly.is_valid:
         return poly, False
+    if tangled is not None:
+        tangled(len(a) - 1)  # may refuse before the work
     mid = split() if split is not None else None
     pieces = _chunked(a, b) if mid is None else _chunked(a, mid) + _chunked(mid, b)
     if not pieces:
@@ -563,7 +574,7 @@ def _strip_polygon(
     return _polygonal(shapely.union_all(pieces)), True
 
 
-def _tangle(tangles: _Tangles, steps: int, rid: str, path: str) -> None:
+def _tangle(tangles: _Tangles, steps: int, *, rid: str, path: str) -> None:
     """Counts steps of self-crossing strips; InputError past ``MAX_TANGLED_STEPS``."""
     tangles.steps += steps
     if tangles.steps > MAX_TANGLED_STEPS:
@@ -594,8 +605,15 @@ def _fold(run: _Run, t: F64) -> int | None:
     return int(np.flatnonzero(back)[0]) if back.any() else None
 
 
-def _build_road(plan: _RoadPlan, warnings: list[str], tangles: _Tangles, path: str) -> _RoadParts:
-    """The mesh, lane polygons and outer edges of a planned road."""
+def _build_road(
+    plan: _RoadPlan,
+    warnings: list[str],
+    tangles: _Tangles,
+    path: str,
+    tick: Callable[[], None] = lambda: None,
+) -> _RoadParts:
+    """The mesh, lane polygons and outer edges of a planned road; ``tick()`` after
+    each lane (progress within a big road)."""
     rid = plan.road.id
     verts: list[F64] = []
     faces: list[NDArray[np.int64]] = []
@@ -640,9 +658,10 @@ def _build_road(plan: _RoadPlan, warnings: list[str], tangles: _Tangles, path: s
                 rpts = _point(frame, borders[right])[:, :2]
                 lpts = _point(frame, borders[left])[:, :2]
                 split = partial(_lane_split, run, frame, borders[right], borders[left])
-                poly, tangled = _strip_polygon(rpts, lpts, split)
+                count = partial(_tangle, tangles, rid=rid, path=path)
+                poly, tangled = _strip_polygon(rpts, lpts, split, count)
+                tick()
                 if tangled:
-                    _tangle(tangles, n - 1, rid, path)
                     fold = _fold(run, borders[lane.id])
                     if fold is not None and lane.id not in folded:
                         folded.add(lane.id)
@@ -749,9 +768,8 @@ def _band(
         far = e.xy + off * outer
 
         split = partial(_band_split, e, inner, outer)
-        strip, tangled = _strip_polygon(near, far, split)
-        if tangled:
-            _tangle(tangles, len(e.xy) - 1, parts.road_id, path)
+        count = partial(_tangle, tangles, rid=parts.road_id, path=path)
+        strip, _ = _strip_polygon(near, far, split, count)
         strips.append(strip)
     return shapely.union_all(strips) if strips else Polygon()
 
@@ -795,6 +813,12 @@ def _plan_all(
         except InputError as exc:
             raise InputError(f"{path}: {exc}") from None
         if plan is not None:
+            if plan.points > MAX_ROAD_POINTS:
+                raise InputError(
+                    f"{path}: road {road.id}: {plan.points:,} mesh points ({plan.stations:,} "
+                    f"stations x its lane borders) are more than the {MAX_ROAD_POINTS:,} a "
+                    "road may have"
+                )
             plans.append(plan)
             points += plan.points
             if points > MAX_POINTS:
@@ -903,7 +927,7 @@ def build_import(
     tangles = _Tangles()
     tick = Ticker(progress, "roads", len(plans))
     for k, plan in enumerate(plans):
-        parts = _build_road(plan, warnings, tangles, path)
+        parts = _build_road(plan, warnings, tangles, path, partial(tick, k))
         plan.sections = []  # the evaluated stations are not needed again
         if len(parts.faces):
             built.append(parts)
