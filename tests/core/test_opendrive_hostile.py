@@ -435,14 +435,17 @@ def test_progress_reports_every_stage_in_order(tmp_path, monkeypatch):
 
 
 def test_progress_is_heard_at_least_every_second(tmp_path):
-    """400 small roads: some seconds of work, never a second without a call."""
-    roads = [_plain(str(k), y=20.0 * k) for k in range(400)]
+    """1,500 small roads: a few seconds of work, called between units at least every
+    ``INTERVAL_S`` = 0.25 s, so never near a second without a call (1.5 s allows for a
+    busy machine)."""
+    roads = [_plain(str(k), y=20.0 * k) for k in range(1500)]
     times: list[float] = []
     path = write(tmp_path, xodr(*roads))
     net = read_opendrive(path, lambda *a: times.append(time.perf_counter()))
     build_import(net, progress=lambda *a: times.append(time.perf_counter()))
-    assert len(times) > 12  # each stage's start and end, and calls between
-    assert np.diff(times).max() < 1.0
+    assert times[-1] - times[0] > 1.0
+    assert len(times) > 2 * 6  # each stage's start and end, and calls between
+    assert np.diff(times).max() < 1.5
 
 
 # The union of each real file's targets (ImportSummary.target_m2) before the import was
@@ -460,3 +463,58 @@ REAL_TARGET_M2 = {
 def test_real_files_keep_their_target_area(name):
     result = build_import(read_opendrive(DATA / f"{name}.xodr"))
     assert union_area(result) == pytest.approx(REAL_TARGET_M2[name], rel=1e-8)
+
+
+# --- what the file says is quoted short and on one line; work stays near linear -----
+
+
+def test_ids_types_and_values_are_quoted_short_and_on_one_line(tmp_path):
+    """An id with a line break (&#10; survives XML's attribute normalisation), a value
+    of 100,000 characters, 20 made-up lane types: the messages stay one short line."""
+    long_value = "1" * 50_000 + "x" + "1" * 50_000
+    bad_id = road("a&#10;b", 30.0, geometry(0, long_value, 0, 0, 30.0, "<line/>"), simple_lanes())
+    kinds = [lane(-i, width(3.0), f"kind{i}") for i in range(1, 21)]
+    odd = road("c", 30.0, line(30.0, y=40), section(0, [], kinds))
+    message = refused(tmp_path, xodr(bad_id, odd))
+    assert "\n" not in message and len(message) < 400
+    assert "kind1, kind10, kind11, kind12, kind13, kind14, kind15, kind16 and 12 more" in message
+    assert (
+        "roads skipped: road a\\nb: <geometry> x='1111111111111111111111111111111111111...' "
+        in (message)
+    )
+
+
+def test_roads_stacked_on_one_another_stay_near_linear(tmp_path):
+    """1,000 copies of one road: each band meets all the others' surfaces. Merging
+    those band by band was quadratic (2,000 took 12 s); now a few seconds."""
+    text = xodr(*[_plain(str(k)) for k in range(1000)])
+    t0 = time.perf_counter()
+    result = build(tmp_path, text)
+    assert time.perf_counter() - t0 < 20.0
+    # Each road's own band is 2 x 5 x 100 m^2; its own lanes 650 m^2.
+    assert {round(a.area_m2, 6) for a in result.sensor_areas} == {1000.0}
+    assert union_area(result) == pytest.approx(650.0, abs=0.01)
+
+
+def test_a_road_of_20000_geometries_is_evaluated_at_once(tmp_path):
+    """20,000 lines of 2 m: seconds, not the quadratic minute of masking every
+    station for every geometry."""
+    plan = "".join(geometry(2.0 * k, 2.0 * k, 0, 0, 2.0, "<line/>") for k in range(20_000))
+    t0 = time.perf_counter()
+    result = build(tmp_path, xodr(road("1", 40_000.0, plan, simple_lanes())))
+    assert time.perf_counter() - t0 < 20.0
+    assert result.lane_area_m2["driving"] == pytest.approx(40_000 * 6.5, rel=1e-9)
+
+
+@pytest.mark.parametrize(
+    "limit, words",
+    [
+        ("MAX_GEOMETRIES", "4 planView geometries are more than the 3 an import builds"),
+        ("MAX_SECTIONS", "4 lane sections are more than the 3 an import builds"),
+        ("MAX_LANES", "8 lanes (counted in every lane section) are more than the 3"),
+    ],
+)
+def test_files_with_too_many_records_are_refused_up_front(tmp_path, monkeypatch, limit, words):
+    monkeypatch.setattr(build_module, limit, 3)
+    text = xodr(*[_plain(str(k), y=20.0 * k) for k in range(4)])
+    assert words in refused(tmp_path, text)

@@ -95,6 +95,14 @@ MAX_ROAD_STATIONS = 50_000
 # 60 km, 20 lanes each, 2.96 million points, imported in 52 s at 1 GB peak).
 MAX_ROAD_POINTS = 150_000
 MAX_POINTS = 3_000_000
+# Records whose work is per record, not per point, in the whole file: planView
+# geometries (0.15 ms each, measured on a road of 20,000), lane sections (1.5 ms
+# each, on a road of 2,000) and lanes counted in every section (0.4 ms each, on a
+# section of 2,000). Each limit is about a minute; Town04 has 1,215 geometries, 775
+# lane sections and some 6,000 lanes.
+MAX_GEOMETRIES = 200_000
+MAX_SECTIONS = 40_000
+MAX_LANES = 100_000
 # A lane wider than this is no lane (the widest proving-ground areas drawn as one lane,
 # vehicle-dynamics pads, are a few hundred metres across; Town04's widest lane is
 # under 10 m).
@@ -123,6 +131,9 @@ MAX_TANGLED_STEPS = 60_000
 # enough that a piece seldom crosses itself (a lane turning 3.2 rad), long enough to
 # keep the pieces few.
 CHUNK_STEPS = 64
+# Vertices of a piece of the roads' merged surface (``_subdivide``): a band's
+# difference with the few pieces it meets stays cheap however big the network.
+SUBDIVIDE_POINTS = 256
 
 
 @dataclass(frozen=True)
@@ -370,10 +381,13 @@ def _check_run(road: Road, sec: LaneSection, s0: float, run: _Run, outer: float)
         )
 
 
-def _plan_road(road: Road, outer: float, warnings: list[str]) -> _RoadPlan | None:
+def _plan_road(
+    road: Road, outer: float, warnings: list[str], tick: Callable[[], None] = lambda: None
+) -> _RoadPlan | None:
     """Size and check one road (see the module docstring): its runs of stations with
     the road evaluated there. None (with a warning) for a road that cannot be built;
-    InputError naming the road and the figure for one past a limit."""
+    InputError naming the road and the figure for one past a limit. ``tick()`` after
+    each lane section (progress within a big road)."""
     rid = road.id
     if road.length > MAX_ROAD_LENGTH_M:
         raise InputError(
@@ -422,6 +436,7 @@ def _plan_road(road: Road, outer: float, warnings: list[str]) -> _RoadPlan | Non
                 f"the {MAX_ROAD_STATIONS:,} a road may have"
             )
         steps.append((sec, s0, s1, cuts, n))
+        tick()
     jumps = []
     for s_jump, gap in ref.jumps():
         if not lo_s < s_jump <= hi_s:
@@ -459,6 +474,7 @@ def _plan_road(road: Road, outer: float, warnings: list[str]) -> _RoadPlan | Non
                 lo = np.minimum(lo, [px.min(), py.min()])
                 hi = np.maximum(hi, [px.max(), py.max()])
         sections.append((sec, s0, runs))
+        tick()
     return _RoadPlan(road, sections, int(total), points, lo, hi)
 
 
@@ -774,6 +790,29 @@ def _band(
     return shapely.union_all(strips) if strips else Polygon()
 
 
+def _subdivide(geom: BaseGeometry, max_points: int = SUBDIVIDE_POINTS) -> list[BaseGeometry]:
+    """Polygonal ``geom`` cut by halving its box until each piece has at most
+    ``max_points`` vertices (or is under 1 m across): pieces an STRtree can pick."""
+    out: list[BaseGeometry] = []
+    todo = [g for g in getattr(geom, "geoms", [geom]) if not g.is_empty]
+    while todo:
+        g = todo.pop()
+        x0, y0, x1, y1 = g.bounds
+        if shapely.get_num_coordinates(g) <= max_points or max(x1 - x0, y1 - y0) < 1.0:
+            out.append(g)
+            continue
+        if x1 - x0 >= y1 - y0:
+            xm = 0.5 * (x0 + x1)
+            halves = [(x0, y0, xm, y1), (xm, y0, x1, y1)]
+        else:
+            ym = 0.5 * (y0 + y1)
+            halves = [(x0, y0, x1, ym), (x0, ym, x1, y1)]
+        for rect in halves:
+            part = _polygonal(shapely.clip_by_rect(g, *rect))
+            todo.extend(p for p in getattr(part, "geoms", [part]) if not p.is_empty)
+    return out
+
+
 def _lane_types(lane_types: Sequence[str]) -> tuple[str, ...]:
     if isinstance(lane_types, str):
         lane_types = [lane_types]
@@ -802,6 +841,21 @@ def _plan_all(
             f"{path}: {len(network.roads):,} roads are more than the {MAX_ROADS:,} an "
             "import takes; split the file"
         )
+    counts = (
+        (sum(len(r.geometries) for r in network.roads), MAX_GEOMETRIES, "planView geometries"),
+        (sum(len(r.sections) for r in network.roads), MAX_SECTIONS, "lane sections"),
+        (
+            sum(len(s.left) + len(s.right) for r in network.roads for s in r.sections),
+            MAX_LANES,
+            "lanes (counted in every lane section)",
+        ),
+    )
+    for count, limit, what in counts:
+        if count > limit:
+            raise InputError(
+                f"{path}: {count:,} {what} are more than the {limit:,} an import builds "
+                "(about a minute's work); split the file"
+            )
     plans: list[_RoadPlan] = []
     points = 0
     tick = Ticker(progress, "sizing", len(network.roads))
@@ -809,7 +863,7 @@ def _plan_all(
         try:
             # Overflows are expected of hostile numbers: every figure is checked after.
             with np.errstate(all="ignore"):
-                plan = _plan_road(road, outer, warnings)
+                plan = _plan_road(road, outer, warnings, partial(tick, k))
         except InputError as exc:
             raise InputError(f"{path}: {exc}") from None
         if plan is not None:
@@ -909,7 +963,9 @@ def build_import(
         ln.type for r in network.roads for sec in r.sections for ln in (*sec.left, *sec.right)
     }
     if not any(t.lower() in wanted for t in present):
-        have = ", ".join(sorted(present)) or "no lanes"
+        kinds = sorted(present)
+        have = ", ".join(kinds[:8]) + (f" and {len(kinds) - 8:,} more" if len(kinds) > 8 else "")
+        have = have or "no lanes"
         skipped = skipped_reasons(network.warnings)
         raise InputError(
             f"{path}: no lane of type {', '.join(types)} (the file has: {have})"
@@ -954,8 +1010,11 @@ def build_import(
             canon = _CANONICAL.get(ltype.lower())
             if canon in lane_area:
                 lane_area[canon] += float(poly.area)
-    surface_polys = [moved(g) for g in surface_polys]
-    tree = shapely.STRtree(surface_polys)
+    # Every road's surface, merged once and cut into small pieces: each band takes
+    # the pieces it meets. (Merging the surfaces a band meets, band by band, was
+    # quadratic: 2,000 roads stacked on one another took 12 s, 10,000 would take 5 min.)
+    pieces = _subdivide(moved(shapely.union_all(surface_polys)))
+    tree = shapely.STRtree(pieces)
 
     targets: list[AreaRings] = []
     tick = Ticker(progress, "targets", len(built))
@@ -991,7 +1050,7 @@ def build_import(
         raw = moved(raw)
         near = tree.query(raw, predicate="intersects")
         if len(near):
-            raw = raw.difference(shapely.union_all([surface_polys[int(j)] for j in near]))
+            raw = raw.difference(shapely.union_all([pieces[int(j)] for j in near]))
         region = _clean(raw, MIN_SENSOR_PART_M2, MIN_TARGET_PART_M2)
         if not region.is_empty:
             bands.append((p, region))

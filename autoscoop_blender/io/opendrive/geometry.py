@@ -139,6 +139,17 @@ class ReferenceLine:
     def __init__(self, geometries: Sequence[Geometry]):
         self.geometries = list(geometries)
         self.starts = np.array([g.s for g in self.geometries])
+        # Lines and arcs (most of every real file) are evaluated all at once: their
+        # start points, headings (cos, sin as each geometry's own would give) and
+        # curvatures (0 for a line or an arc too slight to tell from one).
+        g = self.geometries
+        self._x = np.array([e.x for e in g])
+        self._y = np.array([e.y for e in g])
+        self._hdg = np.array([e.hdg for e in g])
+        self._cos = np.array([np.cos(e.hdg) for e in g])
+        self._sin = np.array([np.sin(e.hdg) for e in g])
+        self._k = np.array([e.params[0] if e.kind == "arc" else 0.0 for e in g])
+        self._simple = np.array([e.kind in ("line", "arc") for e in g])
         # poly3 arc-length tables, made when first needed (most roads have none).
         self._tables: dict[int, tuple[F64, F64]] = {}
 
@@ -199,16 +210,40 @@ class ReferenceLine:
         x = np.empty_like(s)
         y = np.empty_like(s)
         h = np.empty_like(s)
+        simple = self._simple[idx]
         with np.errstate(over="ignore", invalid="ignore"):
-            for k in np.unique(idx):
-                sel = idx == k
-                g = self.geometries[int(k)]
-                u, v, dh = self._local(int(k), s[sel] - g.s)
+            if simple.any():
+                self._lines_and_arcs(s, idx, simple, x, y, h)
+            for k, sel in _groups(idx[~simple]):
+                sel = np.flatnonzero(~simple)[sel]
+                g = self.geometries[k]
+                u, v, dh = self._local(k, s[sel] - g.s)
                 c, sn = np.cos(g.hdg), np.sin(g.hdg)
                 x[sel] = g.x + c * u - sn * v
                 y[sel] = g.y + sn * u + c * v
                 h[sel] = g.hdg + dh
         return x, y, h
+
+    def _lines_and_arcs(
+        self, s: F64, idx: NDArray[np.intp], simple: NDArray[np.bool_], x: F64, y: F64, h: F64
+    ) -> None:
+        """``evaluate`` of the stations on lines and arcs, in one pass (the same
+        arithmetic as ``_local`` and ``_spiral`` give them one geometry at a time)."""
+        sel = np.flatnonzero(simple)
+        k = idx[sel]
+        ds = s[sel] - self.starts[k]
+        kappa = self._k[k]
+        bent = np.abs(kappa) >= 1e-15
+        u = ds.copy()
+        v = np.zeros_like(ds)
+        kb, db = kappa[bent], ds[bent]
+        u[bent] = np.sin(kb * db) / kb
+        v[bent] = (1.0 - np.cos(kb * db)) / kb
+        dh = np.where(bent, kappa * ds, 0.0)
+        c, sn = self._cos[k], self._sin[k]
+        x[sel] = self._x[k] + c * u - sn * v
+        y[sel] = self._y[k] + sn * u + c * v
+        h[sel] = self._hdg[k] + dh
 
     def jumps(self) -> list[tuple[float, float]]:
         """(s, metres) where a geometry starts away from where the one before it
@@ -237,9 +272,8 @@ class ReferenceLine:
         out = np.zeros_like(a)
         idx = self.index(a)
         with np.errstate(over="ignore", invalid="ignore"):
-            for k in np.unique(idx):
-                sel = np.flatnonzero(idx == k)
-                g = self.geometries[int(k)]
+            for k, sel in _groups(idx):
+                g = self.geometries[k]
                 if g.kind == "line":
                     continue
                 if g.kind in ("arc", "spiral"):
@@ -253,12 +287,24 @@ class ReferenceLine:
                 for i in sel:
                     m = int(np.clip(np.ceil((b[i] - a[i]) / 0.5), 8, 4000))
                     grid = np.linspace(a[i], b[i], m + 1)
-                    _, _, h = self._local(int(k), grid - g.s)
+                    _, _, h = self._local(k, grid - g.s)
                     step = np.diff(h)
                     # Wrapped into (-pi, pi]: a heading from arctan2 jumps by 2 pi.
                     step = (step + np.pi) % (2.0 * np.pi) - np.pi
                     out[i] = float(np.abs(step).sum())
         return out
+
+
+def _groups(idx: NDArray[np.intp]) -> list[tuple[int, NDArray[np.intp]]]:
+    """(value, positions) for each distinct value of ``idx``, in one sort: a loop
+    over geometries that masks every s for each would be quadratic (20,000
+    geometries took seconds)."""
+    if not len(idx):
+        return []
+    order = np.argsort(idx, kind="stable")
+    values, first = np.unique(idx[order], return_index=True)
+    ends = np.append(first[1:], len(idx))
+    return [(int(v), order[a:b]) for v, a, b in zip(values, first, ends, strict=True)]
 
 
 def _abs_linear_integral(f0: F64, f1: F64, length: F64) -> F64:

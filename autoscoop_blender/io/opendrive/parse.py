@@ -121,6 +121,18 @@ class _RoadFault(Exception):
     """A record of one road that cannot be used: the road is skipped."""
 
 
+# Longest text of the file quoted in a message (a value, an id, a type): a message
+# stays one short line whatever the file holds.
+SHOWN_CHARS = 40
+
+
+def shown(text: str) -> str:
+    """``text`` as a message quotes it: control characters escaped (no line break
+    gets into a one-line message), at most ``SHOWN_CHARS`` characters."""
+    out = "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+    return out if len(out) <= SHOWN_CHARS else out[: SHOWN_CHARS - 3] + "..."
+
+
 def _num(el: ET.Element, name: str, default: float | None = None) -> float:
     raw = el.get(name)
     if raw is None:
@@ -130,9 +142,9 @@ def _num(el: ET.Element, name: str, default: float | None = None) -> float:
     try:
         value = float(raw)
     except ValueError:
-        raise _RoadFault(f"<{el.tag}> {name}={raw!r} is not a number") from None
+        raise _RoadFault(f"<{el.tag}> {name}='{shown(raw)}' is not a number") from None
     if not math.isfinite(value):
-        raise _RoadFault(f"<{el.tag}> {name}={raw!r} is not finite")
+        raise _RoadFault(f"<{el.tag}> {name}='{shown(raw)}' is not finite")
     return value
 
 
@@ -160,7 +172,8 @@ def _geometry(el: ET.Element) -> Geometry:
         raise _RoadFault(f"geometry at s={s:g} has negative length {length:g}")
     kinds = [c for c in el if c.tag in GEOMETRY_KINDS]
     if not kinds:
-        found = ", ".join(f"<{c.tag}>" for c in el) or "nothing"
+        tags = [f"<{shown(str(c.tag))}>" for c in el[:3]]
+        found = ", ".join(tags + (["..."] if len(el) > 3 else [])) or "nothing"
         raise _RoadFault(f"geometry at s={s:g} holds {found}, not a known geometry")
     kind = kinds[0]
     params: tuple[float, ...] = ()
@@ -184,7 +197,7 @@ def _geometry(el: ET.Element) -> Geometry:
         coeffs = [_num(kind, f"{k}U") for k in "abcd"] + [_num(kind, f"{k}V") for k in "abcd"]
         prange = kind.get("pRange", "normalized")
         if prange not in ("arcLength", "normalized"):
-            raise _RoadFault(f"paramPoly3 at s={s:g} has pRange {prange!r}")
+            raise _RoadFault(f"paramPoly3 at s={s:g} has pRange '{shown(prange)}'")
         params = (*coeffs, 1.0 if prange == "normalized" else 0.0)
     return Geometry(s, x, y, hdg, length, kind.tag, params)
 
@@ -197,13 +210,13 @@ def _lanes(side: ET.Element | None, sign: int) -> tuple[Lane, ...]:
         try:
             lane_id = int(el.get("id", ""))
         except ValueError:
-            raise _RoadFault(f"lane id {el.get('id')!r} is not an integer") from None
+            raise _RoadFault(f"lane id '{shown(el.get('id', ''))}' is not an integer") from None
         if lane_id * sign <= 0:
             raise _RoadFault(f"lane {lane_id} is on the wrong side of the centre lane")
         lanes.append(
             Lane(
                 lane_id,
-                el.get("type", "none"),
+                shown(el.get("type", "none")),
                 _polys(el, "width", "sOffset"),
                 _polys(el, "border", "sOffset"),
             )
@@ -348,7 +361,8 @@ def read_opendrive(
     all_ids = {r.get("id", "") for r in road_els}
     tick = Ticker(progress, "parsing", len(road_els))
     for k, el in enumerate(road_els):
-        road_id = el.get("id") or f"#{k}"
+        # Ids name objects and fill messages: shown as a message would quote them.
+        road_id = shown(el.get("id") or f"#{k}")
         if road_id in seen:
             warnings.append(f"road {road_id}: a second road with this id; skipped")
             continue
@@ -362,7 +376,7 @@ def read_opendrive(
         raise InputError(f"{name}: no road could be used: {skipped_reasons(warnings)}")
     junction_roads: dict[str, list[str]] = {}
     for junc in root.findall("junction"):
-        jid = junc.get("id", "?")
+        jid = shown(junc.get("id", "?"))
         members = junction_roads.setdefault(jid, [])
         for conn in junc.findall("connection"):
             for attr in ("incomingRoad", "connectingRoad"):
@@ -371,8 +385,8 @@ def read_opendrive(
                     continue
                 if rid not in all_ids:
                     warnings.append(
-                        f"junction {jid}: connection {conn.get('id', '?')} names road "
-                        f"{rid} ({attr}), which the file does not have; link ignored"
+                        f"junction {jid}: connection {shown(conn.get('id', '?'))} names road "
+                        f"{shown(rid)} ({attr}), which the file does not have; link ignored"
                     )
                 elif attr == "connectingRoad" and rid not in members:
                     members.append(rid)
