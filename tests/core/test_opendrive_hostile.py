@@ -518,3 +518,15 @@ def test_files_with_too_many_records_are_refused_up_front(tmp_path, monkeypatch,
     monkeypatch.setattr(build_module, limit, 3)
     text = xodr(*[_plain(str(k), y=20.0 * k) for k in range(4)])
     assert words in refused(tmp_path, text)
+
+
+def test_a_planview_that_jumps_at_every_geometry_is_refused(tmp_path, monkeypatch):
+    """Twelve 2 m lines each starting 1 m past where the one before ends: eleven
+    jumps, more than the file may have (each stays a part through every merge)."""
+    monkeypatch.setattr(build_module, "MAX_JUMPS", 10)
+    plan = "".join(geometry(2.0 * k, 3.0 * k, 0, 0, 2.0, "<line/>") for k in range(12))
+    message = refused(tmp_path, xodr(road("1", 24.0, plan, simple_lanes())))
+    assert message.endswith(
+        "its planViews jump more than 10 times (road 1 alone 11 times): a broken export, "
+        "not a road network"
+    )

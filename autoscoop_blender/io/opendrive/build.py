@@ -16,11 +16,13 @@ so the plan-area error of a lane is a few hundredths of a per cent.
 
 Sizing before building: every road is first planned (``_plan_road``): its stations
 counted from the rule above, then made and the road evaluated there, and every figure
-checked against the limits below (length, stations, coordinates, lane widths, heights,
-slopes; the file's mesh points, extent and header offset). Past a limit the import is
-refused with one line naming the road and the figure, before a single polygon is
-made. The limits agree with what a scene must be for ``optimize`` (the scene contract
-in ``scene/extract.py`` and ``core/model``): an import that succeeds gives a scene
+checked against the limits below (length, stations, mesh points, coordinates, lane
+widths, heights, slopes; the file's records, mesh points, extent and header offset).
+Past a limit the import is refused with one line naming the road and the figure,
+before a single polygon is made (only the budget of self-crossing strips, and a
+target area's tilt, are checked as those are made). The limits agree with what a
+scene must be for ``optimize`` (the scene contract in ``scene/extract.py`` and
+``core/model``), and reuse its constants: an import that succeeds gives a scene
 ``extract_scene`` accepts.
 
 A planView whose next geometry starts away from where the one before it ends (more
@@ -99,13 +101,13 @@ MAX_POINTS = 3_000_000
 # geometries (0.15 ms each, measured on a road of 20,000), lane sections (1.5 ms
 # each, on a road of 2,000) and lanes counted in every section (0.4 ms each, on a
 # section of 2,000). Each limit is about a minute; Town04 has 1,215 geometries, 775
-# lane sections and some 6,000 lanes.
+# lane sections and 1,475 lanes.
 MAX_GEOMETRIES = 200_000
 MAX_SECTIONS = 40_000
 MAX_LANES = 100_000
 # A lane wider than this is no lane (the widest proving-ground areas drawn as one lane,
-# vehicle-dynamics pads, are a few hundred metres across; Town04's widest lane is
-# under 10 m).
+# vehicle-dynamics pads, are a few hundred metres across; the real files' widest
+# lane is 7 m).
 MAX_LANE_WIDTH_M = 1_000.0
 # Heights a road may have (elevation, and superelevation's rise at the lane border):
 # a scene's origin is moved near its areas in plan only (``choose_origin``), so a
@@ -120,6 +122,10 @@ MAX_SUPERELEVATION_RAD = math.radians(MAX_RING_TILT_DEG)
 # A planView geometry starting farther than this from where the one before it ends is
 # a jump (warned; the lanes are cut there). The real files' largest is 1.5 mm.
 GAP_TOL_M = 0.1
+# Jumps in the whole file: each cuts a road into pieces that stay apart through every
+# merge, and merging thousands of parts is slow (a road of 5,000 jumps took 28 s). The
+# real files have none; a thousand is a broken export, not a road network.
+MAX_JUMPS = 1_000
 # Steps of lanes (and sensor bands) whose ring crosses itself, summed over the file,
 # checked before each is made. Merging the pieces of such a strip costs more the more
 # often it covers the same ground: 12,000 steps wound 95 times round a 1.7 m radius
@@ -211,6 +217,7 @@ class _RoadPlan:
     sections: list[tuple[LaneSection, float, list[_Run]]]
     stations: int
     points: int
+    jumps: int
     lo: F64  # (2,) plan box of every lane border point
     hi: F64
 
@@ -455,11 +462,14 @@ def _plan_road(
     hi = np.full(2, -np.inf)
     for sec, s0, s1, cuts, n in steps:
         s = _stations_from(cuts, n.astype(np.int64))
-        # Each jump is a station (every geometry start is a cut): runs end there.
-        at = [int(np.argmin(np.abs(s - j))) for j in jumps if s0 < j <= s1]
-        for k, j in zip(at, (j for j in jumps if s0 < j <= s1), strict=True):
-            s[k] = j
-        bounds = [0, *at, len(s) - 1]
+        # Each jump is a station (every geometry start is a cut, give or take the
+        # 1e-9 m that merges cuts): the nearest one is set to it and runs end there.
+        here = np.array([j for j in jumps if s0 < j <= s1])
+        i = np.clip(np.searchsorted(s, here), 1, len(s) - 1)
+        i -= (np.abs(s[i - 1] - here) <= np.abs(s[i] - here)).astype(i.dtype)
+        s[i] = here
+        at = set(i.tolist())
+        bounds = [0, *sorted(at), len(s) - 1]
         runs = []
         for i0, i1 in zip(bounds[:-1], bounds[1:], strict=True):
             if i1 <= i0:
@@ -475,7 +485,7 @@ def _plan_road(
                 hi = np.maximum(hi, [px.max(), py.max()])
         sections.append((sec, s0, runs))
         tick()
-    return _RoadPlan(road, sections, int(total), points, lo, hi)
+    return _RoadPlan(road, sections, int(total), points, len(jumps), lo, hi)
 
 
 def _evaluate(road: Road, ref: ReferenceLine, sec: LaneSection, s: F64, end_before: bool) -> _Run:
@@ -857,7 +867,7 @@ def _plan_all(
                 "(about a minute's work); split the file"
             )
     plans: list[_RoadPlan] = []
-    points = 0
+    points = jumps = 0
     tick = Ticker(progress, "sizing", len(network.roads))
     for k, road in enumerate(network.roads):
         try:
@@ -875,6 +885,13 @@ def _plan_all(
                 )
             plans.append(plan)
             points += plan.points
+            jumps += plan.jumps
+            if jumps > MAX_JUMPS:
+                raise InputError(
+                    f"{path}: its planViews jump more than {MAX_JUMPS:,} times (road "
+                    f"{road.id} alone {plan.jumps:,} times): a broken export, not a road "
+                    "network"
+                )
             if points > MAX_POINTS:
                 raise InputError(
                     f"{path}: its roads make more than {MAX_POINTS:,} mesh points (stations "
@@ -1029,7 +1046,13 @@ def build_import(
             rings2 = _rings(region)
             if not rings2:
                 continue
-            rings = [np.column_stack([r, _surface_z(verts, p.faces, r)]) for r in rings2]
+            # All rings at once: one search tree of the road's triangles, not one a
+            # ring (a road cut into 1,000 pieces by planView jumps took minutes).
+            heights = np.split(
+                _surface_z(verts, p.faces, np.concatenate(rings2)),
+                np.cumsum([len(r) for r in rings2])[:-1],
+            )
+            rings = [np.column_stack([r, zr]) for r, zr in zip(rings2, heights, strict=True)]
             area = AreaRings(
                 f"Target_{t}_road{p.road_id}", p.road_id, (t,), rings, float(region.area)
             )
