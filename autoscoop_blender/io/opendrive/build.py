@@ -98,12 +98,12 @@ MAX_ROAD_STATIONS = 50_000
 MAX_ROAD_POINTS = 150_000
 MAX_POINTS = 3_000_000
 # Records whose work is per record, not per point, in the whole file: planView
-# geometries (0.15 ms each, measured on a road of 20,000), lane sections (1.5 ms
-# each, on a road of 2,000) and lanes counted in every section (0.4 ms each, on a
-# section of 2,000). Each limit is about a minute; Town04 has 1,215 geometries, 775
-# lane sections and 1,475 lanes.
+# geometries (0.15 ms each, measured on a road of 20,000), lane sections (2 ms each,
+# measured on 200 roads of 50: 10,000 sections in 22 s) and lanes counted in every
+# section (0.4 ms each, on a road of 2,000 sections of 10). Each limit is about a
+# minute; Town04 has 1,215 geometries, 775 lane sections and 1,475 lanes.
 MAX_GEOMETRIES = 200_000
-MAX_SECTIONS = 40_000
+MAX_SECTIONS = 25_000
 MAX_LANES = 100_000
 # A lane wider than this is no lane (the widest proving-ground areas drawn as one lane,
 # vehicle-dynamics pads, are a few hundred metres across; the real files' widest
