@@ -8,7 +8,7 @@ Each example must end, within ``SECONDS`` and without the process growing past
 ``optimize`` reads) or in the project's one-line error (``AutoscoopError``, no line
 break). Anything else (another exception, a scene the contract refuses, a run that
 takes minutes) is a bug. Bounded for CI: no example database, a fixed number of
-examples (about 30 s here).
+examples (about 40 s here).
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from autoscoop_blender.scene.extract import extract_scene
 from autoscoop_blender.scene.xodr_import import import_xodr
 
 FUZZ = settings(
-    max_examples=120,
+    max_examples=200,
     deadline=None,
     database=None,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
@@ -212,7 +212,20 @@ def files(draw) -> str:
     many (so that imports that succeed are fuzzed as well as refusals)."""
     rate = draw(st.sampled_from([0, 0, 2, 5, 20]))
     body = "".join(draw(roads(k + 1, rate)) for k in range(draw(st.integers(1, 3))))
-    return f'<?xml version="1.0"?><OpenDRIVE><header revMajor="1" revMinor="6"/>{body}</OpenDRIVE>'
+    offset = ""
+    if draw(st.booleans()):  # the header's offset, added to every coordinate
+        xyzh = [draw(number(-1e6, 1e6, rate)) for _ in range(3)] + [draw(number(-7, 7, rate))]
+        offset = (
+            "<offset "
+            + " ".join(
+                f'{k}="{text(v)}"' for k, v in zip(("x", "y", "z", "hdg"), xyzh, strict=True)
+            )
+            + "/>"
+        )
+    return (
+        '<?xml version="1.0"?><OpenDRIVE><header revMajor="1" revMinor="6">'
+        f"{offset}</header>{body}</OpenDRIVE>"
+    )
 
 
 def assert_accepted(model) -> None:  # type: ignore[no-untyped-def]

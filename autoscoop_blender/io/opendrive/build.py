@@ -743,7 +743,10 @@ def _clean(geom: BaseGeometry, min_part: float, min_hole: float) -> Polygon | Mu
         return Polygon()
     # Snapped to a grid that float32 holds exactly (Blender keeps curve points in
     # float32): a ring simple in float64 may otherwise touch itself once rounded.
-    out = shapely.set_precision(shapely.union_all(kept), FLOAT32_GRID_M)
+    # (shapely's numpy wrapper warns of a part that collapses on the grid; it is
+    # dropped below, so the warning says nothing the result does not.)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = shapely.set_precision(shapely.union_all(kept), FLOAT32_GRID_M)
     return _polygonal(out)
 
 
