@@ -20,7 +20,9 @@ if __name__ == "__main__":
     from headless import interrupts
 
     interrupts.install()
-
-    from headless.cli import main
-
-    sys.exit(main(_arguments()))
+    try:  # (numpy and the rest load here: a second or more)
+        from headless.cli import main
+    except KeyboardInterrupt:
+        interrupts.last_line()
+        sys.exit(interrupts.EXIT_INTERRUPTED)
+    sys.exit(interrupts.finish(main(_arguments())))

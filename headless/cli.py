@@ -208,7 +208,10 @@ def _floats(text: str) -> tuple[float, ...]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except KeyboardInterrupt:
+        return _interrupted()
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s: %(message)s")
     handlers: dict[str, Callable[[argparse.Namespace], int]] = {
         "coverage": _coverage,

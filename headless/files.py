@@ -69,6 +69,7 @@ def blend_bytes() -> bytes:
     that is gone afterwards, whatever happens; the open file keeps its own path."""
     import bpy
 
+    interrupts.check()
     with tempfile.TemporaryDirectory(prefix="autoscoop-") as tmp:
         blend = Path(tmp) / "scene.blend"
         with interrupts.scratch(Path(tmp)), interrupts.held(), quiet_fds() as chatter:
@@ -145,6 +146,10 @@ def check_outputs(
                 raise InputError(f"{out} ({flag}): is {what} ({inp}), an input; {advice}")
         if out.is_dir():
             raise InputError(f"{out} ({flag}): is a folder, not a file to write; {advice}")
+        if os.path.lexists(out) and not out.is_file():
+            # A device (/dev/null), a pipe, a link to one: a rename would put a file
+            # in its place.
+            raise InputError(f"{out} ({flag}): is not a regular file; {advice}")
     names = list(outputs)
     for k, out in enumerate(names):
         for other in names[k + 1 :]:
@@ -170,6 +175,7 @@ def write_files(contents: dict[Path, str | bytes]) -> None:
     a failure while staging (a full disk) leaves every destination untouched and no
     temporary file behind; an interrupt waits for the renames to end.
     """
+    interrupts.check()  # nothing is written once interrupted
     for path in contents:
         if path.is_dir():
             raise InputError(f"{path}: is a directory, not a file to write")

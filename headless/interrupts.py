@@ -2,9 +2,10 @@
 exit code 130, no traceback, and a last line that says what was kept.
 
 - ``install()``, the first thing ``__main__`` does, makes SIGINT (Ctrl-C; a terminal
-  sends it to every process of the group) and SIGTERM (``kill``, ``timeout``, a batch
-  system's end of job) raise KeyboardInterrupt in the main thread, so that the job's
-  ``finally`` blocks run: temporary files removed, worker processes ended.
+  sends it to every process of the group), SIGTERM (``kill``, ``timeout``, a batch
+  system's end of job) and SIGHUP (the terminal closed) raise KeyboardInterrupt in the
+  main thread, so that the job's ``finally`` blocks run: temporary files removed,
+  worker processes ended.
 - ``held()`` delays them to the end of a block. Blender's own code (``import bpy``,
   opening and saving .blend files) runs Python scripts whose exceptions it prints and
   swallows: an interrupt raised in there would be lost with a traceback, and a bpy
@@ -16,6 +17,11 @@ exit code 130, no traceback, and a last line that says what was kept.
   ``GRACE_S`` after the first signal, or at a second one, the watchdog removes the
   scratch paths registered (``scratch``), prints the last line and ends the process
   with ``os._exit(130)``.
+- A C library that calls back into Python (pyproj's logging, say) swallows an
+  exception raised in the callback: the interrupt is lost there, with a traceback
+  (printed through ``sys.excepthook`` or ``sys.unraisablehook``). So no traceback of
+  a KeyboardInterrupt is printed, and ``check()`` raises the interrupt again where it
+  must not be missed: before any output is written, and at every progress report.
 - ``keep(text)`` or ``keep(callable)``: what an interruption keeps, as the job stands
   (a callable is asked when the line is printed, so it reads the checkpoint then).
   ``last_line()`` prints ``interrupted: <that>`` once, whoever comes first.
@@ -30,12 +36,14 @@ import os
 import select
 import shutil
 import signal
+import socket
 import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 GRACE_S = 3.0
 """Seconds from the first interrupt to the watchdog's exit: the clean-up's budget (the
@@ -43,7 +51,14 @@ issue's promise is 5 s, with the interpreter's own exit after it)."""
 
 EXIT_INTERRUPTED = 130
 
-_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+# Sent to the watchdog by ``finish`` (no signal has the number 0).
+_FINISHED = b"\0"
+
+# SIGHUP: the terminal was closed. Each is taken over only where it is not ignored
+# already (``nohup``, a shell's background job), as Python itself does for SIGINT.
+_SIGNALS = tuple(
+    getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
+)
 
 
 class _State:
@@ -53,19 +68,36 @@ class _State:
     signalled = False  # any signal arrived
     kept: Callable[[], str] = lambda: "nothing written"  # noqa: E731
     printed = False
+    finished: int | None = None  # the exit code, once the command is done
     lock = threading.Lock()
     scratch: set[Path] = set()
+    wakeup: tuple[socket.socket, socket.socket] | None = None
 
 
 def install() -> None:
     """Take over SIGINT and SIGTERM for the command line (main thread only)."""
     if _State.installed or threading.current_thread() is not threading.main_thread():
         return
-    read_end, write_end = os.pipe()
-    os.set_blocking(write_end, False)
-    signal.set_wakeup_fd(write_end, warn_on_full_buffer=False)
+    # A socket pair rather than a pipe: Windows takes only a socket here.
+    read_end, write_end = socket.socketpair()
+    write_end.setblocking(False)
+    signal.set_wakeup_fd(write_end.fileno(), warn_on_full_buffer=False)
+    _State.wakeup = (read_end, write_end)  # kept open for the process's life
     for signum in _SIGNALS:
-        signal.signal(signum, _handler)
+        if signal.getsignal(signum) is not signal.SIG_IGN:
+            signal.signal(signum, _handler)
+    unraisable, excepthook = sys.unraisablehook, sys.excepthook
+
+    def quiet_unraisable(u: Any) -> None:
+        if not isinstance(u.exc_value, KeyboardInterrupt):
+            unraisable(u)
+
+    def quiet_excepthook(kind: type[BaseException], value: BaseException, tb: Any) -> None:
+        if not issubclass(kind, KeyboardInterrupt):
+            excepthook(kind, value, tb)
+
+    sys.unraisablehook = quiet_unraisable
+    sys.excepthook = quiet_excepthook
     threading.Thread(
         target=_watch, args=(read_end,), name="autoscoop-interrupt", daemon=True
     ).start()
@@ -77,7 +109,29 @@ def signalled() -> bool:
     return _State.signalled
 
 
+def check() -> None:
+    """KeyboardInterrupt if an interrupt came (and may have been swallowed)."""
+    if _State.signalled and not _State.hold_depth:
+        raise KeyboardInterrupt
+
+
+def finish(code: int) -> int:
+    """The command has ended with ``code``: from here on (the interpreter's own exit,
+    bpy's clean-up) interrupts are ignored, since Python's exit puts the default
+    actions back and one would kill the process (exit -2) with its work done. The
+    watchdog ends the process with ``code`` if that exit takes more than ``GRACE_S``.
+    Returns ``code``."""
+    _State.finished = code
+    if _State.wakeup is not None:
+        for signum in _SIGNALS:
+            signal.signal(signum, signal.SIG_IGN)
+        _State.wakeup[1].send(_FINISHED)
+    return code
+
+
 def _handler(signum: int, frame: object) -> None:
+    if _State.finished is not None:
+        return
     _State.signalled = True
     if _State.hold_depth:
         _State.pending = True
@@ -125,6 +179,11 @@ def scratch(path: Path) -> Iterator[Path]:
 
 def last_line() -> None:
     """Print ``interrupted: <what is kept>`` on stderr, once."""
+    # CPython flags a KeyboardInterrupt raised inside exec() of a string (dataclasses
+    # make their methods so, at import) as unhandled even once it is caught, and then
+    # ends the process by SIGINT (exit -2) instead of with our exit code. Every exec
+    # of a string clears that flag first.
+    exec("None")
     with _State.lock:
         if _State.printed:
             return
@@ -144,7 +203,7 @@ def _midline() -> bool:
     return bool(progress and progress.ProgressBar.drawing)
 
 
-def _watch(read_end: int) -> None:
+def _watch(read_end: socket.socket) -> None:
     """The watchdog thread (module docstring)."""
     first: float | None = None
     while True:
@@ -152,12 +211,17 @@ def _watch(read_end: int) -> None:
         ready, _, _ = select.select([read_end], [], [], wait)
         if not ready:
             break  # the grace is over
-        got = [b for b in os.read(read_end, 64) if b in _SIGNALS]
+        data = read_end.recv(64)
+        if _FINISHED in data and first is None:
+            first = time.monotonic()  # the exit's own deadline
+        got = [b for b in data if b in _SIGNALS]
         if not got:
             continue
         if first is not None or len(got) > 1:
             break  # a second interrupt: at once
         first = time.monotonic()
+    if _State.finished is not None:  # stuck in the interpreter's exit: done all the same
+        os._exit(_State.finished)
     last_line()
     for path in list(_State.scratch):
         if path.is_dir():

@@ -141,6 +141,7 @@ def optimize(args: argparse.Namespace) -> int:
             bar.close()
         result = run.result()
         write_results(result, out_dir, render=args.render)
+        interrupts.keep(f"the results are written in {out_dir}")
     m = result.metrics
     kept = ""
     if existing or existing_masts:

@@ -1,4 +1,4 @@
-"""A one-line progress bar on stderr for long runs."""
+"""One-line progress on stderr: the bar of a long run, the status line of an import."""
 
 from __future__ import annotations
 
@@ -6,6 +6,7 @@ import sys
 import time
 
 from autoscoop_blender.core.optimize.base import Progress
+from headless import interrupts
 
 
 class ProgressBar:
@@ -37,6 +38,7 @@ class ProgressBar:
         )
 
     def update(self, p: Progress) -> None:
+        interrupts.check()
         now = time.perf_counter()
         if not self.tty:
             if p.phase in ("fixed", "done"):
@@ -47,6 +49,35 @@ class ProgressBar:
         self._last = now
         print("\r" + self._line(p), end="", file=self.stream, flush=True)
         ProgressBar.drawing = True
+
+    def close(self) -> None:
+        if ProgressBar.drawing:
+            print(file=self.stream, flush=True)
+            ProgressBar.drawing = False
+
+
+class StageLine:
+    """``progress(stage, done, total)`` (an import's) as one status line on stderr:
+    redrawn on a terminal; in a log, a line every ``log_interval_s`` (none for work
+    shorter than that)."""
+
+    def __init__(self, what: str, stream=sys.stderr, log_interval_s: float = 2.0) -> None:
+        self.what = what
+        self.stream = stream
+        self.tty = stream.isatty()
+        self.log_interval = log_interval_s
+        self.t0 = self._last = time.perf_counter()
+
+    def __call__(self, stage: str, done: int, total: int) -> None:
+        interrupts.check()
+        now = time.perf_counter()
+        line = f"{self.what}: {stage} {done:,} of {total:,} | {now - self.t0:6.1f} s"
+        if self.tty:
+            print("\r" + line + "\033[K", end="", file=self.stream, flush=True)
+            ProgressBar.drawing = True
+        elif now - self._last >= self.log_interval:
+            print(line, file=self.stream, flush=True)
+            self._last = now
 
     def close(self) -> None:
         if ProgressBar.drawing:

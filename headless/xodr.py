@@ -9,6 +9,7 @@ from pathlib import Path
 from autoscoop_blender.core.errors import InputError
 from headless import interrupts
 from headless.files import blend_bytes, check_outputs, write_files
+from headless.progress import StageLine
 
 # Warnings printed one by one; the rest are counted.
 SHOWN_WARNINGS = 20
@@ -29,7 +30,11 @@ def import_xodr(args: argparse.Namespace) -> int:
     check_outputs({out: "--out"}, {Path(args.file): "the OpenDRIVE file"}, args.overwrite)
     with interrupts.held():  # Blender's load handlers run Python (``interrupts``)
         bpy.ops.wm.read_factory_settings(use_empty=True)
-    summary = import_xodr(args.file, lanes, band, args.terrain)
+    line = StageLine(Path(args.file).name)
+    try:
+        summary = import_xodr(args.file, lanes, band, args.terrain, progress=line)
+    finally:
+        line.close()
     for w in summary.warnings[:SHOWN_WARNINGS]:
         print(f"warning: {w}", file=sys.stderr)
     if len(summary.warnings) > SHOWN_WARNINGS:

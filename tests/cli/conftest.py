@@ -3,6 +3,7 @@
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import bpy
 import pytest
@@ -24,6 +25,20 @@ def run_headless(*args, script=False):
         timeout=600,
     )
     return proc.returncode, proc.stdout, proc.stderr
+
+
+def live_processes(field: int, value: int) -> set[int]:
+    """Live (not zombie) processes whose /proc stat field after the name is ``value``
+    there: field 1 the parent's process id, 2 the process group (Linux)."""
+    out = set()
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[field]) == value and fields[0] != "Z":
+            out.add(int(stat.parent.name))
+    return out
 
 
 @pytest.fixture

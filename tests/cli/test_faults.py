@@ -13,7 +13,7 @@ import pytest
 
 from autoscoop_blender.core.errors import InputError
 from headless.lock import OutDirLock
-from tests.cli.conftest import SAMPLES, run_headless
+from tests.cli.conftest import SAMPLES, live_processes, run_headless
 from tests.conftest import ROOT
 
 FLAT = SAMPLES / "flat_wall.blend"
@@ -23,15 +23,7 @@ linux_only = pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="re
 
 def children_of(pid: int) -> set[int]:
     """Live processes whose parent is ``pid`` (from /proc)."""
-    out = set()
-    for stat in Path("/proc").glob("[0-9]*/stat"):
-        try:
-            fields = stat.read_text().rsplit(")", 1)[1].split()
-        except OSError:
-            continue
-        if int(fields[1]) == pid and fields[0] != "Z":
-            out.add(int(stat.parent.name))
-    return out
+    return live_processes(1, pid)
 
 
 def alive(pid: int) -> bool:

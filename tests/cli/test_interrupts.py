@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.cli.conftest import SAMPLES
+from tests.cli.conftest import SAMPLES, live_processes
 from tests.conftest import ROOT
 
 pytestmark = pytest.mark.skipif(
@@ -63,15 +63,7 @@ class Run:
 
     def group(self) -> set[int]:
         """Live (not zombie) processes of its process group."""
-        out = set()
-        for stat in Path("/proc").glob("[0-9]*/stat"):
-            try:
-                fields = stat.read_text().rsplit(")", 1)[1].split()
-            except OSError:
-                continue
-            if int(fields[2]) == self.proc.pid and fields[0] != "Z":
-                out.add(int(stat.parent.name))
-        return out
+        return live_processes(2, self.proc.pid)
 
     def interrupt(self, how: str) -> tuple[int, str]:
         """Send ``how`` (SIGINT: to the group; SIGTERM: to the main process;
@@ -230,11 +222,12 @@ def test_an_import_writes_nothing(tmp_path, moment):
 
 
 def watchdog_script(body: str) -> subprocess.Popen:
-    """A process that installs the interrupts as ``__main__`` does, then runs ``body``."""
+    """A process that installs the interrupts as ``__main__`` does, then runs ``body``
+    (which calls ``ready()`` where the signal is to come)."""
     code = (
         "import sys, time\nfrom pathlib import Path\nfrom headless import interrupts\n"
         "interrupts.install()\ninterrupts.keep('what the test keeps')\n"
-        "print('ready', flush=True)\n" + body
+        "def ready():\n    print('ready', flush=True)\n" + body
     )
     return subprocess.Popen(
         [sys.executable, "-c", code], cwd=ROOT, stdout=subprocess.PIPE,
@@ -250,7 +243,7 @@ def test_work_that_holds_the_interrupt_is_ended_by_the_watchdog(tmp_path):
     scratch.mkdir()
     proc = watchdog_script(
         f"interrupts.add_scratch(Path({str(scratch)!r}))\n"
-        "with interrupts.held():\n    time.sleep(60)\n"
+        "with interrupts.held():\n    ready()\n    time.sleep(60)\n"
     )
     assert proc.stdout.readline().strip() == "ready"
     sent = time.monotonic()
@@ -263,7 +256,7 @@ def test_work_that_holds_the_interrupt_is_ended_by_the_watchdog(tmp_path):
 
 
 def test_a_second_interrupt_ends_it_at_once():
-    proc = watchdog_script("with interrupts.held():\n    time.sleep(60)\n")
+    proc = watchdog_script("with interrupts.held():\n    ready()\n    time.sleep(60)\n")
     assert proc.stdout.readline().strip() == "ready"
     proc.send_signal(signal.SIGINT)
     time.sleep(0.3)
@@ -277,7 +270,8 @@ def test_a_second_interrupt_ends_it_at_once():
 def test_a_held_interrupt_is_raised_when_the_block_ends():
     """Held for a moment, not lost: KeyboardInterrupt comes at the end of the block."""
     proc = watchdog_script(
-        "try:\n    with interrupts.held():\n        time.sleep(1.0)\n    print('lost')\n"
+        "try:\n    with interrupts.held():\n        ready()\n        time.sleep(1.0)\n"
+        "    print('lost')\n"
         "except KeyboardInterrupt:\n    print('raised', flush=True)\n"
     )
     assert proc.stdout.readline().strip() == "ready"

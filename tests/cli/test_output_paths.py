@@ -162,12 +162,18 @@ def test_optimize_refuses_an_earlier_runs_files_until_told(work):
     )
 
 
-def test_a_linked_checkpoint_is_never_written_through(work):
+def linked_in_out(work: Path, name: str) -> tuple[Path, Path]:
+    """work/out/NAME, a symbolic link to a file of the user's: (out, that file)."""
     out = work / "out"
     out.mkdir()
     mine = work / "notes.txt"
     mine.write_text("mine")
-    (out / "checkpoint.jsonl").symlink_to(mine)
+    (out / name).symlink_to(mine)
+    return out, mine
+
+
+def test_a_linked_checkpoint_is_never_written_through(work):
+    out, mine = linked_in_out(work, "checkpoint.jsonl")
     refused(optimize_args(work, work / "S.blend", out, "--resume"), work, "symbolic link")
     code, _, stderr = run_headless(*optimize_args(work, work / "S.blend", out, "--overwrite"))
     assert code in (0, 3), stderr
@@ -177,12 +183,9 @@ def test_a_linked_checkpoint_is_never_written_through(work):
 
 
 def test_a_linked_lock_is_refused(work):
-    out = work / "out"
-    out.mkdir()
-    mine = work / "notes.txt"
-    mine.write_text("mine")
-    (out / ".autoscoop.lock").symlink_to(mine)
+    out, mine = linked_in_out(work, ".autoscoop.lock")
     refused(optimize_args(work, work / "S.blend", out), work, "symbolic link")
+    assert mine.read_text() == "mine"
 
 
 def test_a_checkpoint_that_is_a_folder_is_one_line(work):
@@ -233,3 +236,12 @@ def test_a_failed_write_leaves_no_temporary_file(work, command):
         after.pop(".autoscoop.lock")
     assert after == before
     assert not [p for p in out.iterdir() if p.name.startswith(".") and "lock" not in p.name]
+
+
+def test_a_device_or_a_link_to_one_is_never_replaced(work, tmp_path):
+    """/dev/null, or a link to it: a rename would put a file where the device was."""
+    (work / "null.csv").symlink_to("/dev/null")
+    for out in (Path("/dev/null"), work / "null.csv"):
+        args = coverage_args(work, work / "c.json", "--points-csv", out, "--overwrite")
+        refused(args, work, "is not a regular file")
+    assert Path("/dev/null").is_char_device()
