@@ -56,17 +56,31 @@ class AUTOSCOOP_OT_import_xodr(bpy.types.Operator, ImportHelper):
     )
 
     def execute(self, context: bpy.types.Context) -> set[str]:
+        wm = context.window_manager
+        wm.progress_begin(0, 1000)  # the cursor's counter, per mille of the import
+
+        def progress(stage: str, done: int, total: int) -> None:
+            if stage in IMPORT_STAGES:
+                k = IMPORT_STAGES.index(stage) + done / max(total, 1)
+                wm.progress_update(int(1000 * k / len(IMPORT_STAGES)))
+
         try:
             lanes = parse_lanes(self.lanes)
             band = (self.band_inner, self.band_outer)
-            summary = import_xodr(self.filepath, lanes, band, self.terrain, context.scene)
+            summary = import_xodr(self.filepath, lanes, band, self.terrain, context.scene, progress)
         except AutoscoopError as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
+        finally:
+            wm.progress_end()
         for w in summary.warnings:
             self.report({"WARNING"}, w)
         self.report({"INFO"}, f"{summary.collection}: {summary.text()}")
         return {"FINISHED"}
+
+
+# The stages ``import_xodr`` reports, in order.
+IMPORT_STAGES = ("reading", "parsing", "sizing", "roads", "targets", "sensor areas", "objects")
 
 
 def _menu_entry(self: bpy.types.Menu, context: bpy.types.Context) -> None:
