@@ -231,8 +231,8 @@ def _check_out_dir(out_dir: Path, args: argparse.Namespace, scene: str | None) -
 
 
 def scene_input(path: str | None) -> dict[Path, str]:
-    """The scene file as an input for ``check_outputs``: the one given, else the one
-    Blender opened (none for the bundled sample, which is read only)."""
+    """The scene file as an input for ``check_outputs``: the one given (or the bundled
+    sample), else the one Blender opened; none in an unsaved Blender file."""
     import bpy
 
     given = path or bpy.data.filepath

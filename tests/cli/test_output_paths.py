@@ -17,6 +17,7 @@ from pathlib import Path
 
 import pytest
 
+from headless.jobs import RESULT_NAMES
 from tests.cli.conftest import SAMPLES, run_headless
 from tests.conftest import ROOT
 
@@ -149,6 +150,9 @@ def test_optimize_refuses_an_earlier_runs_files_until_told(work):
     code, _, stderr = run_headless(*optimize_args(work, work / "S.blend", out))
     assert code in (0, 3), stderr
     result = (out / "result.json").read_bytes()
+    # The files the rule guards are all the run writes.
+    run_files = set(RESULT_NAMES) | {"checkpoint.jsonl", ".autoscoop.lock"}
+    assert {p.name for p in out.iterdir()} <= run_files
     line = refused(optimize_args(work, work / "S.blend", out), work, "an earlier run's checkpoint")
     assert "--resume goes on from it, --overwrite starts again" in line
     (out / "checkpoint.jsonl").unlink()
@@ -245,3 +249,15 @@ def test_a_device_or_a_link_to_one_is_never_replaced(work, tmp_path):
         args = coverage_args(work, work / "c.json", "--points-csv", out, "--overwrite")
         refused(args, work, "is not a regular file")
     assert Path("/dev/null").is_char_device()
+
+
+def test_a_blend_cut_short_is_told_from_a_whole_one():
+    """Blender's compressed files end with zstd's seek table, uncompressed ones with
+    the ENDB block: any cut loses that end."""
+    from headless.files import whole_blend
+
+    data = FLAT.read_bytes()
+    assert whole_blend(data)
+    assert not any(whole_blend(data[:n]) for n in (0, 4, len(data) // 2, len(data) - 1))
+    plain = b"BLENDER-v405" + b"\0" * 100 + b"ENDB" + b"\0" * 20
+    assert whole_blend(plain) and not whole_blend(plain[:100])
