@@ -20,7 +20,6 @@ resume, and replaced, not written through, by a fresh start.
 
 from __future__ import annotations
 
-import errno
 import hashlib
 import json
 import os
@@ -34,19 +33,9 @@ from autoscoop_blender.core.errors import InputError
 from autoscoop_blender.core.model.scene import SceneModel
 from autoscoop_blender.core.model.sensors import SensorModel, SensorPack, SensorSpec
 from autoscoop_blender.core.settings import OptimizeSettings, from_mapping
-from headless.files import write_files
+from headless.files import open_no_link, write_files
 
 NAME = "checkpoint.jsonl"
-
-# Not on Windows, where a file opened by name is never a link's target by surprise.
-_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
-
-
-def _why(e: OSError) -> str:
-    """An open's failure in words (ELOOP: the name is a symbolic link)."""
-    if e.errno == errno.ELOOP:
-        return "it is a symbolic link, which AutoSCOOP does not follow"
-    return e.strerror or str(e)
 
 
 def scene_fingerprint(scene: SceneModel) -> str:
@@ -165,11 +154,9 @@ class Checkpoint:
     def _read(self) -> bytes:
         """The file's bytes, not through a link; InputError saying why not."""
         try:
-            fd = os.open(self.path, os.O_RDONLY | _NOFOLLOW)
+            fd = open_no_link(self.path, os.O_RDONLY, "read it")
         except FileNotFoundError:
             raise InputError(f"{self.path}: no checkpoint to resume from") from None
-        except OSError as e:
-            raise InputError(f"{self.path}: cannot read it ({_why(e)})") from None
         with os.fdopen(fd, "rb") as f:
             try:
                 return f.read()
@@ -263,9 +250,9 @@ class Checkpoint:
             self.start()
         line = encode_line(record)
         try:
-            fd = os.open(self.path, os.O_RDWR | _NOFOLLOW)
-        except OSError as e:
-            raise InputError(f"{self.path}: cannot write it ({_why(e)})") from None
+            fd = open_no_link(self.path, os.O_RDWR, "write it")
+        except FileNotFoundError:
+            raise InputError(f"{self.path}: cannot write it (removed during the run)") from None
         with os.fdopen(fd, "r+b") as f:
             if self._valid_bytes is not None:
                 f.truncate(self._valid_bytes)  # drop a line a crash cut short

@@ -14,6 +14,7 @@ temporary files go on every error path (a full disk too).
 from __future__ import annotations
 
 import csv
+import errno
 import io
 import json
 import os
@@ -112,6 +113,27 @@ def csv_text(header: Sequence[str], rows: Iterable[Sequence[Any]]) -> str:
     writer.writerow(header)
     writer.writerows(rows)
     return buf.getvalue()
+
+
+# O_NOFOLLOW: not on Windows, where a file opened by name is not a link's target.
+_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
+
+
+def open_no_link(path: Path, flags: int, doing: str) -> int:
+    """``os.open`` that never goes through a symbolic link (the checkpoint and the
+    lock are written in place); InputError "<path>: cannot <doing> (<why>)" when it
+    cannot open. Returns the file descriptor."""
+    try:
+        return os.open(path, flags | _NOFOLLOW, 0o666)
+    except FileNotFoundError:
+        raise
+    except OSError as e:
+        why = (
+            "it is a symbolic link, which AutoSCOOP does not follow"
+            if e.errno == errno.ELOOP
+            else e.strerror or str(e)
+        )
+        raise InputError(f"{path}: cannot {doing} ({why})") from None
 
 
 def same_file(a: Path, b: Path) -> bool:

@@ -9,7 +9,6 @@ for the message a second run gets.
 
 from __future__ import annotations
 
-import errno
 import os
 import sys
 from pathlib import Path
@@ -17,9 +16,9 @@ from types import TracebackType
 from typing import IO
 
 from autoscoop_blender.core.errors import InputError
+from headless.files import open_no_link
 
 NAME = ".autoscoop.lock"
-_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)  # (none on Windows)
 
 
 def _try_lock(f: IO[bytes]) -> bool:
@@ -53,12 +52,8 @@ class OutDirLock:
             self.path.parent.mkdir(parents=True, exist_ok=True)
         except OSError as e:
             raise InputError(f"{self.path.parent}: cannot write there ({e.strerror})") from None
-        try:
-            # Never through a link: the lock is truncated and written below.
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT | _NOFOLLOW, 0o666)
-        except OSError as e:
-            why = "a symbolic link, not followed" if e.errno == errno.ELOOP else e.strerror
-            raise InputError(f"{self.path}: cannot take the run's lock ({why})") from None
+        # Never through a link: the lock is truncated and written below.
+        fd = open_no_link(self.path, os.O_RDWR | os.O_CREAT, "take the run's lock")
         f = os.fdopen(fd, "r+b")
         f.seek(0)
         owner = f.read().decode("ascii", "replace").strip()

@@ -51,9 +51,14 @@ class ProgressBar:
         ProgressBar.drawing = True
 
     def close(self) -> None:
-        if ProgressBar.drawing:
-            print(file=self.stream, flush=True)
-            ProgressBar.drawing = False
+        end_line(self.stream)
+
+
+def end_line(stream) -> None:
+    """End the line a bar or status line left unfinished on the terminal, if any."""
+    if ProgressBar.drawing:
+        print(file=stream, flush=True)
+        ProgressBar.drawing = False
 
 
 class StageLine:
@@ -80,6 +85,4 @@ class StageLine:
             self._last = now
 
     def close(self) -> None:
-        if ProgressBar.drawing:
-            print(file=self.stream, flush=True)
-            ProgressBar.drawing = False
+        end_line(self.stream)

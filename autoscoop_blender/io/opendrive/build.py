@@ -310,14 +310,6 @@ def _stations_from(cuts: F64, n: NDArray[np.int64]) -> F64:
     return np.concatenate([cuts[:1], s])
 
 
-def _stations(road: Road, ref: ReferenceLine, sec: LaneSection, s0: float, s1: float) -> F64:
-    """Sample positions along s in [s0, s1] by the rule in the module docstring (no
-    limit checked: see ``_plan_road``)."""
-    cuts = _cuts(road, sec, s0, s1)
-    n, _ = _steps(road, ref, sec, cuts)
-    return _stations_from(cuts, n.astype(np.int64))
-
-
 def _first(bad: NDArray[np.bool_]) -> int:
     return int(np.flatnonzero(bad)[0])
 

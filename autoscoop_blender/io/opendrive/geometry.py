@@ -42,6 +42,15 @@ _FRESNEL_MAX_ARG = 1.0e3
 _TABLE_CELLS = 4096
 
 
+def _active(records: Sequence[Poly], s: F64, base: float) -> tuple[F64, F64]:
+    """The coefficients (N, 4) of the record active at each s (N,) and ds from its
+    start (records sorted by start; before the first record the first applies)."""
+    starts = np.array([r.s + base for r in records])
+    idx = np.clip(np.searchsorted(starts, s, side="right") - 1, 0, len(records) - 1)
+    coef = np.array([(r.a, r.b, r.c, r.d) for r in records])[idx]
+    return coef, s - starts[idx]
+
+
 def eval_polys(records: Sequence[Poly], s: F64, base: float = 0.0) -> F64:
     """The piecewise cubic at s (records sorted by start; before the first record the
     first applies). ``base`` is added to every record's start (a lane section's s)."""
@@ -53,10 +62,7 @@ def eval_polys(records: Sequence[Poly], s: F64, base: float = 0.0) -> F64:
         ds = s - (r.s + base)
         out: F64 = r.a + ds * (r.b + ds * (r.c + ds * r.d))
         return out
-    starts = np.array([r.s + base for r in records])
-    idx = np.clip(np.searchsorted(starts, s, side="right") - 1, 0, len(records) - 1)
-    coef = np.array([(r.a, r.b, r.c, r.d) for r in records])[idx]
-    ds = s - starts[idx]
+    coef, ds = _active(records, s, base)
     return coef[..., 0] + ds * (coef[..., 1] + ds * (coef[..., 2] + ds * coef[..., 3]))
 
 
@@ -65,10 +71,7 @@ def eval_poly_slopes(records: Sequence[Poly], s: F64, base: float = 0.0) -> F64:
     s = np.asarray(s, dtype=np.float64)
     if not records:
         return np.zeros_like(s)
-    starts = np.array([r.s + base for r in records])
-    idx = np.clip(np.searchsorted(starts, s, side="right") - 1, 0, len(records) - 1)
-    coef = np.array([(r.a, r.b, r.c, r.d) for r in records])[idx]
-    ds = s - starts[idx]
+    coef, ds = _active(records, s, base)
     return coef[..., 1] + ds * (2.0 * coef[..., 2] + ds * 3.0 * coef[..., 3])
 
 
