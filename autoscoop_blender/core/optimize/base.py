@@ -53,7 +53,11 @@ class Progress:
 
     fixed: the sensor just fixed (phase "fixed"), else None. bound, best: the lower
     bound on the objective proven so far and the best plan's objective, when the
-    optimizer knows them (the lp optimizer).
+    optimizer knows them (the lp optimizer). stage: what the optimizer is doing, in a
+    word or two ("candidates", "bounds", "plans", ...; "" when it does not say);
+    part, parts: the part of the ground being worked on, 1-based, of how many (0, 0:
+    the ground is not planned in parts); plan: (sensors, masts) of the best plan so
+    far; eta_s: the optimizer's estimate of the seconds left (None: no estimate).
     """
 
     phase: str  # "search" | "fixed" | "masts" | "report" | "done"
@@ -65,6 +69,11 @@ class Progress:
     fixed: FixedSensor | None = None
     bound: float | None = None
     best: float | None = None
+    stage: str = ""
+    part: int = 0
+    parts: int = 0
+    plan: tuple[int, int] | None = None
+    eta_s: float | None = None
 
     @property
     def fraction(self) -> float:
@@ -194,7 +203,10 @@ class Solution:
         fixed: FixedSensor | None = None,
         bound: float | None = None,
         best: float | None = None,
+        **where: Any,
     ) -> Progress:
+        """Where the run is now; ``where``: ``Progress``'s stage, part, parts, plan,
+        eta_s."""
         return Progress(
             phase,
             len(self.sensors),
@@ -205,6 +217,7 @@ class Solution:
             fixed,
             bound,
             best,
+            **where,
         )
 
 
