@@ -129,6 +129,13 @@ NONZERO_BYTES = 8
 NONZERO_BUILD_BYTES = 16
 NONZERO_OPTIMIZER_BYTES = {"greedy": 26, "lp": 36}
 LP_BASE_BYTES = 192 << 20
+# The lp optimizer plans a target in parts (``optimize/parts.py``) of at most this many
+# target points (two_routes, 16,555, is one part) and, where the candidate matrix is
+# dense, of at most ``PART_NONZEROS`` (about 3.6 GB through the optimizer's peak).
+PART_POINTS = 20_000
+PART_NONZEROS = 100_000_000
+# The densest part's nonzeros over the average part's, allowed for in the estimate.
+PART_IMBALANCE = 1.5
 # An ES worker process before its grid and cache: a spawned interpreter with bpy,
 # numpy, scipy and shapely imported and the caster built (measured 373 MiB on
 # two_routes at 0.5 m, less its 19 MiB grid). Each worker then rebuilds the grid and
@@ -188,6 +195,7 @@ class Estimate:
     cache_rows: int = 0
     pattern_rays: int = 0
     workers: int = 1
+    parts: int = 1
 
     @property
     def candidates(self) -> int:
@@ -466,17 +474,25 @@ def estimate_run(
     stages["cache"] = resident + cache
     uses_candidates = settings.optimizer in CANDIDATE_OPTIMIZERS or settings.bound
     nonzeros = 0
+    parts = 1
     if uses_candidates:
         nonzeros = int(positions * fp.covers_m2 / g**2)
+        # lp plans a large ground in parts, one part's matrix at a time
+        # (``optimize/parts.py``): the largest part's share of the nonzeros, with room
+        # for parts of unequal density.
+        held = nonzeros
+        if settings.optimizer == "lp":
+            parts = part_count(est.target_points, nonzeros)
+            held = nonzeros if parts == 1 else int(nonzeros / parts * PART_IMBALANCE)
         tests = fp.orientations * fp.widest_m2 / g**2  # one position's cover_many
         stages["candidates"] = (
-            resident + cache + nonzeros * NONZERO_BUILD_BYTES + int(tests * COVER_TEST_BYTES)
+            resident + cache + held * NONZERO_BUILD_BYTES + int(tests * COVER_TEST_BYTES)
         )
         name = settings.optimizer if settings.optimizer in NONZERO_OPTIMIZER_BYTES else "lp"
         base = LP_BASE_BYTES if name == "lp" else 0
-        stages["optimizer"] = resident + cache + base + nonzeros * NONZERO_OPTIMIZER_BYTES[name]
-        # The matrix stays referenced (``Problem.candidates``) through the report.
-        resident += nonzeros * NONZERO_BYTES
+        stages["optimizer"] = resident + cache + base + held * NONZERO_OPTIMIZER_BYTES[name]
+        # The matrix (a part's, in parts) stays referenced through the report.
+        resident += held * NONZERO_BYTES
     for stage in ("evaluation", "reference"):
         stages[stage] += resident - est.grid_bytes + cache
     if settings.optimizer == "es" and workers > 1:
@@ -495,11 +511,19 @@ def estimate_run(
         positions=positions,
         orientations=fp.orientations if uses_candidates else 0,
         nonzeros=nonzeros,
+        parts=parts,
         candidate_rays=int(positions * fp.reach_m2 / g**2) if uses_candidates else 0,
         cache_rows=cache_rows,
         pattern_rays=pattern_rays,
         workers=workers,
     )
+
+
+def part_count(target_points: int, nonzeros: int) -> int:
+    """How many parts the lp optimizer plans a target in: enough for at most
+    ``PART_POINTS`` points and ``PART_NONZEROS`` estimated nonzeros a part. Depends on
+    the estimate only, never on the machine: the same inputs are split the same way."""
+    return max(1, math.ceil(target_points / PART_POINTS), math.ceil(nonzeros / PART_NONZEROS))
 
 
 def _heights(scene: SceneModel, model: SensorModel) -> list[float]:
@@ -701,7 +725,7 @@ def verdict(
         )
     if held + est.peak_bytes > memory:
         return est.peak_stage, have
-    if est.nonzeros > MAX_NONZEROS:
+    if est.nonzeros / est.parts > MAX_NONZEROS:
         return "nonzeros", f"the limit is {count_text(MAX_NONZEROS)} (int32 indices)"
     return None
 

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 from scipy import sparse
+from scipy.spatial import cKDTree
 
 from . import budget
 from .errors import InputError
@@ -76,34 +77,89 @@ def build_candidates(problem: Problem) -> Generator[int, None, CandidateSet]:
     if problem.candidates is not None:
         cached: CandidateSet = problem.candidates
         return cached
+    everywhere = np.arange(problem.n_targets, dtype=np.int64)
+    built = yield from _build(problem, everywhere, np.arange(len(problem.space.positions)))
+    problem.candidates = built.cands
+    return built.cands
+
+
+@dataclass(frozen=True)
+class PartCandidates:
+    """The candidates of one part of the target (``optimize/parts.py``).
+
+    cands: the candidates that cover a point of the part, over the problem's
+    positions, the matrix's columns the part's points in order; share: (C,) each
+    candidate's points in the part over all the points it covers (the part's share of
+    its cost); sites: (S,) the positions they stand at; site_share: (S,) the same
+    share for a site, of the points any of its candidates covers.
+    """
+
+    cands: CandidateSet
+    share: F64
+    sites: I64
+    site_share: F64
+
+
+def build_part(
+    problem: Problem, points: I64, reach_m: float
+) -> Generator[int, None, PartCandidates]:
+    """The candidates of the part of the target with ordinals ``points`` (sorted):
+    every position within ``reach_m`` (the longest range) of one of them, each
+    candidate covering a point there (see ``build_candidates``; yields the same).
+    Only the part's matrix is held: its memory follows the part, not the ground."""
+    xy = problem.grid.target_xy[points]
+    dist, _ = cKDTree(xy).query(problem.space.positions, distance_upper_bound=reach_m)
+    near = np.flatnonzero(np.isfinite(dist))
+    return (yield from _build(problem, points, near))
+
+
+def _build(problem: Problem, points: I64, near: I64) -> Generator[int, None, PartCandidates]:
+    """Candidates at the positions ``near`` (indices into the problem's) over the
+    target points ``points`` (sorted ordinals; the matrix's columns, in order)."""
     models = problem.models
     positions = problem.space.positions
     angles = tuple(model_orientations(m) for m in models)
     limit = budget.nonzero_limit(problem.settings.optimizer)
+    local = np.full(problem.n_targets, -1, dtype=np.int64)
+    local[points] = np.arange(len(points))
+    whole = len(points) == problem.n_targets  # every point: no share to count
     nonzeros = 0
     # Column indices as int32, the matrix's own index type (scipy keeps them uncopied).
     cols: list[NDArray[np.int32]] = []
     cand_pos: list[int] = []
     cand_ori: list[int] = []
     cand_model: list[int] = []
-    total = len(positions) * len(models)  # (position, model) pairs to go through
+    share: list[float] = []
+    # Per position: the target ordinals some candidate there covers (all models).
+    seen: dict[int, I64] = {}
+    total = len(near) * len(models)  # (position, model) pairs to go through
     for m, (model, ang) in enumerate(zip(models, angles)):
         rots = np.array([frame(p, y) for p, y in ang])
-        for i, (x, y) in enumerate(positions):
+        for j, i in enumerate(near):
+            x, y = positions[i]
             pose = problem.pose(x, y, ang[0, 0], ang[0, 1], m)
             covered, ordinal = problem.probe.cover_many(model, pose, rots)
-            ordinal32 = ordinal.astype(np.int32)
-            for o in np.flatnonzero(covered.any(axis=1)):
-                cols.append(ordinal32[covered[o]])
-                cand_pos.append(i)
+            here = local[ordinal]
+            here32 = here.astype(np.int32)
+            mine = covered if whole else covered & (here >= 0)
+            in_part = mine.sum(axis=1)
+            fraction = in_part / np.maximum(covered.sum(axis=1), 1)
+            for o in np.flatnonzero(in_part):
+                cols.append(here32[mine[o]])
+                cand_pos.append(int(i))
                 cand_ori.append(int(o))
                 cand_model.append(m)
-            nonzeros += int(np.count_nonzero(covered))
+                share.append(float(fraction[o]))
+            if not whole:
+                union = ordinal[covered.any(axis=0)]
+                if len(union):
+                    seen[int(i)] = np.union1d(seen.get(int(i), union), union)
+            nonzeros += int(in_part.sum())
             if nonzeros > limit:
-                done = m * len(positions) + i + 1
+                done = m * len(near) + j + 1
                 raise InputError(_outgrown(problem, nonzeros, done, total, limit))
-            if i % POSITIONS_PER_REPORT == 0:
-                yield m * len(positions) + i
+            if j % POSITIONS_PER_REPORT == 0:
+                yield m * len(near) + j
     counts = [len(c) for c in cols]
     matrix = sparse.csr_matrix(
         (
@@ -111,9 +167,9 @@ def build_candidates(problem: Problem) -> Generator[int, None, CandidateSet]:
             np.concatenate(cols) if cols else np.zeros(0, dtype=np.int32),
             np.cumsum([0, *counts]),
         ),
-        shape=(len(cols), problem.n_targets),
+        shape=(len(cols), len(points)),
     )
-    problem.candidates = CandidateSet(
+    cands = CandidateSet(
         positions=positions,
         angles=angles,
         models=models,
@@ -122,7 +178,13 @@ def build_candidates(problem: Problem) -> Generator[int, None, CandidateSet]:
         model=np.array(cand_model, dtype=np.int64),
         matrix=matrix,
     )
-    return problem.candidates
+    sites = np.unique(cands.position)
+    site_share = np.ones(len(sites))
+    if not whole:
+        site_share = np.array(
+            [np.count_nonzero(local[seen[int(s)]] >= 0) / len(seen[int(s)]) for s in sites]
+        )
+    return PartCandidates(cands, np.array(share, dtype=float), sites, site_share)
 
 
 def sensor_price(problem: Problem, cands: CandidateSet) -> float | F64:

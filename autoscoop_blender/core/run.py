@@ -31,8 +31,9 @@ from .model.sensors import SensorModel, SensorPack, SensorPose, SensorSpec
 from .optimize.base import FixedSensor, Optimizer, Progress, Solution, newly_covered
 from .optimize.es import EvolutionStrategy
 from .optimize.greedy import Greedy
-from .optimize.lp import LPPlanner, bound_only
+from .optimize.lp import bound_only
 from .optimize.parallel import WorkerPool
+from .optimize.planner import LPPlanner
 from .problem import Problem
 from .result import Provenance, Result, finish_layout
 from .settings import OptimizeSettings

@@ -19,6 +19,7 @@ from autoscoop_blender.core.optimize import lp as lp_module
 from autoscoop_blender.core.optimize.base import FixedSensor, Solution, StopReason
 from autoscoop_blender.core.optimize.bound import LPSolution, SiteSolution
 from autoscoop_blender.core.optimize.cover import CoverInstance
+from autoscoop_blender.core.optimize.planner import LPPlanner
 from autoscoop_blender.core.settings import OptimizeSettings
 from tests.core.test_lp import instance as rows_instance
 from tests.core.test_lp import steps
@@ -67,6 +68,7 @@ class HandLP:
         self.space = SimpleNamespace(standing=standing, step=4.0)
         self.grid = SimpleNamespace(target_xy=np.zeros((n_points, 2)), spacing=2.0)
         self.settings = OptimizeSettings(optimizer="lp", **settings)
+        self.estimate = SimpleNamespace(parts=1)  # planned whole
 
     def reached(self, n_covered):
         return n_covered >= self.goal
@@ -83,7 +85,7 @@ def solve(problem, solution=None):
     """(the solution, the progress reports) of the lp optimizer on ``problem``."""
     if solution is None:
         solution = Solution(np.zeros(problem.n_targets, bool), need=problem.need)
-    return steps(lp_module.LPPlanner().solve(problem, solution))
+    return steps(LPPlanner().solve(problem, solution))
 
 
 def poses_of(solution):
@@ -442,7 +444,7 @@ def test_a_full_mast_takes_the_rest_from_another_site():
 
 
 def _bound_run(problem, plan=False):
-    """(bound, lp, plan on the fewest masts, greedy cover), the progress reports."""
+    """(bound, lp, plan on the fewest masts, greedy covers), the progress reports."""
     inst = lp_module.instance(problem.candidates, problem, np.zeros(problem.n_targets, bool))
     solution = Solution(np.zeros(problem.n_targets, bool))
     go = lp_module.prove_bound(problem, problem.candidates, inst, solution, None, plan=plan)
@@ -453,8 +455,9 @@ def test_prove_bound_reports_the_greedy_plan_and_the_lp_as_it_rises():
     """GREEDY_TRAP on three sites: greedy's 3 sensors against an LP of 2 sensors and
     2 masts."""
     problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="sensors")
-    (bound, lp, on_sites, greedy), reports = _bound_run(problem)
+    (bound, lp, on_sites, (greedy, greedy_masts)), reports = _bound_run(problem)
     assert sorted(greedy.chosen) == [0, 1, 2] and on_sites is None
+    assert sorted(greedy_masts.chosen) == [0, 1, 2]  # a mast costs nothing for "sensors"
     assert (bound.sensors, bound.masts, bound.lp) == (2, 2, pytest.approx(2.0, abs=1e-4))
     assert lp.complete and {r.best for r in reports} == {3.0}
     assert {r.phase for r in reports} == {"search"}
@@ -508,7 +511,7 @@ def test_prove_and_plan_beats_greedy_and_reports_it():
     inst = lp_module.instance(problem.candidates, problem, np.zeros(7, bool))
     solution = Solution(np.zeros(7, bool))
     go = lp_module.prove_and_plan(problem, problem.candidates, inst, solution, None)
-    (plan, bound), reports = steps(go)
+    (plan, bound, _), reports = steps(go)
     assert sorted(plan) == [1, 2] and bound.sensors == 2
     # After the bounds: the plan on the fewest masts is already 2; then 5 LP plans.
     after = [r for r in reports if r.bound == 2.0 and r.best == 2.0]
@@ -575,7 +578,7 @@ def test_the_lp_optimizer_stopped_early_still_places_a_plan():
     then (the LP's start, greedy's 3 sensors, improved to 2) and the words for an
     early stop."""
     problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="sensors")
-    planner = lp_module.LPPlanner()
+    planner = LPPlanner()
     planner.stop_early()
     res = steps(planner.solve(problem, Solution(np.zeros(7, bool))))[0]
     assert res.stop_reason == StopReason.reached(1.0, early=True) and res.n_covered == 7
@@ -619,7 +622,7 @@ def test_the_deadline_and_the_stop_reach_every_solve(monkeypatch):
     inst = lp_module.instance(cands, problem, np.zeros(7, bool))
     deadline, stop = time.perf_counter() + 100.0, threading.Event()
     go = lp_module.prove_and_plan(problem, cands, inst, Solution(np.zeros(7, bool)), deadline, stop)
-    plan, _ = steps(go)[0]
+    plan, *_ = steps(go)[0]
     assert sorted(plan) == [1, 2] and calls["split_cover_lp"] == []
     (lp,) = calls["cover_lp"]
     assert lp["inst"] is inst and lp["group"] is cands.position
@@ -675,7 +678,7 @@ def test_prices_follow_the_objective(monkeypatch):
         go = lp_module.prove_and_plan(
             problem, problem.candidates, inst, Solution(np.zeros(7, bool)), None
         )
-        _, bound = steps(go)[0]
+        _, bound, _ = steps(go)[0]
         assert calls["cover_lp"][-1]["cost"].tolist() == price
         assert np.asarray(calls["_lp_plans"][-1]["price"]).tolist() == (
             1.0 if objective == "sensors" else price
@@ -689,7 +692,7 @@ def test_greedy_goes_by_cost():
     2 (3 for 1): 2 masts at 3 and 2 sensors, 8; per point it would take 0 first and
     end with three (14)."""
     problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], sensor_costs=(1.0, 3.0), model=[1, 0, 0])
-    (bound, lp, on_sites, greedy), reports = _bound_run(problem)
+    (bound, lp, on_sites, (greedy, _)), reports = _bound_run(problem)
     assert sorted(greedy.chosen) == [1, 2] and {r.best for r in reports} == {8.0}
     assert {r.rho for r in reports} == {1.0}
 
@@ -861,7 +864,7 @@ def test_the_lp_optimizer_stops_fixing_at_the_goal():
 def test_the_lp_optimizer_hands_on_its_deadline_and_stop(monkeypatch):
     calls = spy(monkeypatch, "prove_and_plan")
     problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="sensors", time_limit_s=100.0)
-    planner = lp_module.LPPlanner()
+    planner = LPPlanner()
     t0 = time.perf_counter()
     res = steps(planner.solve(problem, Solution(np.zeros(7, bool))))[0]
     (call,) = calls["prove_and_plan"]

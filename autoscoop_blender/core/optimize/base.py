@@ -267,7 +267,7 @@ def candidates_of(problem: Problem, solution: Solution) -> Generator[Progress, N
         except StopIteration as done:
             cands: CandidateSet = done.value
             return cands
-        yield solution.progress("search", problem.rho)
+        yield solution.progress("search", problem.rho, stage="candidates")
 
 
 def taken_candidates(cands: CandidateSet, solution: Solution) -> NDArray[np.int64]:

@@ -270,7 +270,11 @@ def cover_lp(
         order.extend(int(c) for c in cols)
         if len(cols):
             # With k > 1 a candidate counts once: x_c <= 1 (with k = 1 it never needs more).
-            _add_columns(h, matrix[cols], cost[cols], 1.0 if multi else highspy.kHighsInf)
+            # A column's entries are the matrix's: 1, or for a mast site with k > 1 what
+            # it adds to a point (``parts.site_matrix``).
+            rows = matrix[cols]
+            upper = 1.0 if multi else highspy.kHighsInf
+            _add_columns(h, rows, cost[cols], upper, rows.data)
 
     add(np.unique(np.asarray(initial, dtype=np.int64)))
     best, line = 0.0, (0.0, 0.0)

@@ -70,6 +70,7 @@ from .cover import (
     improve,
 )
 
+F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
 
 # Candidates whose LP reduced cost is within this join the pool plans are built from.
@@ -86,6 +87,9 @@ MAX_MILP_CANDIDATES = 4000
 # two_routes (16,555 points) is solved whole, three tiles of full_ground (49,665) in
 # three parts.
 PART_POINTS = 20_000
+# Once stopped (Esc, Ctrl-C), plans are rounded from the LP for at most this long, s:
+# an interrupted run ends within 5 s (two_routes rounds its 5 plans in about 1 s).
+STOPPED_PLANS_S = 1.5
 
 
 def instance(
@@ -297,19 +301,30 @@ def prove_bound(
     deadline: float | None,
     stop: threading.Event | None = None,
     plan: bool = False,
-) -> Generator[Progress, None, tuple[PlanBound, LPSolution, list[int] | None, Cover]]:
+    lp_cost: F64 | None = None,
+) -> Generator[Progress, None, tuple[PlanBound, LPSolution, list[int] | None, list[Cover]]]:
     """The lower bounds: the LP by column generation from a greedy plan's columns and,
     beside it, the fewest masts (then, when ``plan``, the best plan on them). Returns
-    the bound, the LP, the plan on the fewest masts and the greedy plan. Progress
-    reports the greedy plan's objective and, as it rises, what the LP proves of the
-    objective (sensor_cost x its bound for cost; nothing yet for masts)."""
+    the bound, the LP, the plan on the fewest masts and the greedy plans (per sensor,
+    whose columns start the LP, and per cost with a new mast's cost: fewer masts).
+    Progress reports the best greedy plan's objective and, as it rises, what the LP
+    proves of the objective (sensor_cost x its bound for cost; nothing yet for masts).
+    lp_cost: (C,) the LP's cost per candidate instead of one per sensor (or its
+    model's cost): a part's shares (``parts.py``)."""
     s = problem.settings
     price = sensor_price(problem, cands) if s.objective == "cost" else 1.0
-    greedy = complete(Cover(inst), np.arange(len(cands), dtype=np.int64), sensor_cost=price)
-    best = plan_value(problem, cands, greedy.chosen)
+    every = np.arange(len(cands), dtype=np.int64)
+    greedy = complete(Cover(inst), every, sensor_cost=price)
+    mc, sc = mast_aware_costs(problem, cands, len(cands))
+    greedy_masts = complete(Cover(inst), every, cands.position, mc, sc)
+    greedies = [greedy, greedy_masts]
+    best = min(plan_value(problem, cands, g.chosen) for g in greedies)
+    yield solution.progress("search", problem.rho, best=best, stage="greedy")
     # The LP counts sensors (unit costs), or with models of different costs, prices
     # each candidate at its model's cost; the progress shows the cost it proves.
     ones = np.ones(len(cands)) if np.ndim(price) == 0 else np.asarray(price)
+    if lp_cost is not None:
+        ones = lp_cost
     unit = float(price) if np.ndim(price) == 0 else 1.0
     per_sensor = {"cost": unit, "sensors": 1.0}.get(s.objective)
     n_parts = 1 if inst.xy is None else math.ceil(inst.n_points / PART_POINTS)
@@ -335,8 +350,8 @@ def prove_bound(
             break
         if isinstance(step, LPProgress) and per_sensor is not None:
             so_far = per_sensor * step.bound
-        yield solution.progress("search", problem.rho, bound=so_far, best=best)
-    return _plan_bound(lp, sites, cands, problem), lp, on_sites, greedy
+        yield solution.progress("search", problem.rho, bound=so_far, best=best, stage="bounds")
+    return _plan_bound(lp, sites, cands, problem), lp, on_sites, greedies
 
 
 def prove_and_plan(
@@ -346,25 +361,36 @@ def prove_and_plan(
     solution: Solution,
     deadline: float | None,
     stop: threading.Event | None = None,
-) -> Generator[Progress, None, tuple[list[int], PlanBound]]:
-    """The bounds and the best plan of candidates (see the module docstring); ``stop``
-    ends the search early (the bounds so far, plans from the LP so far)."""
+    lp_cost: F64 | None = None,
+) -> Generator[Progress, None, tuple[list[int], PlanBound, LPSolution]]:
+    """The bounds, the best plan of candidates (see the module docstring) and the LP;
+    ``stop`` ends the search early: the bounds so far, and plans rounded from the LP
+    so far for at most ``STOPPED_PLANS_S`` (at least one). lp_cost: as for
+    ``prove_bound``."""
     s = problem.settings
 
     def value(plan: list[int]) -> float:
         return plan_value(problem, cands, plan)
 
-    bound, lp, on_sites, greedy = yield from prove_bound(
-        problem, cands, inst, solution, deadline, stop=stop, plan=True
+    bound, lp, on_sites, greedies = yield from prove_bound(
+        problem, cands, inst, solution, deadline, stop=stop, plan=True, lp_cost=lp_cost
     )
     lower = bound.objective(s.objective, s.mast_cost, s.sensor_cost)
-    plans = [greedy.chosen] + ([on_sites] if on_sites else [])
-    yield solution.progress("search", problem.rho, bound=lower, best=min(map(value, plans)))
+    plans = [g.chosen for g in greedies if g.slack >= 0] + ([on_sites] if on_sites else [])
+    plans = plans or [greedies[0].chosen]  # short of the goal: the most greedy covers
+    yield solution.progress(
+        "search", problem.rho, bound=lower, best=min(map(value, plans)), stage="plans"
+    )
     price = sensor_price(problem, cands) if s.objective == "cost" else 1.0
+    rounding = time.perf_counter()
     for plan in _lp_plans(inst, lp, price):
         plans.append(plan)
-        yield solution.progress("search", problem.rho, bound=lower, best=min(map(value, plans)))
-    return min(plans, key=value), bound
+        if stop is not None and stop.is_set() and time.perf_counter() - rounding > STOPPED_PLANS_S:
+            break
+        yield solution.progress(
+            "search", problem.rho, bound=lower, best=min(map(value, plans)), stage="plans"
+        )
+    return min(plans, key=value), bound, lp
 
 
 def bound_only(problem: Problem, solution: Solution) -> Generator[Progress, None, PlanBound]:
@@ -464,51 +490,38 @@ def in_gain_order(inst: CoverInstance, chosen: list[int]) -> list[int]:
     return out
 
 
-class LPPlanner:
-    """The ``lp`` optimizer (see the module docstring)."""
-
-    name = "lp"
-
-    def __init__(self) -> None:
-        self.stop = threading.Event()
-
-    def close(self) -> None:
-        pass
-
-    def stop_early(self) -> None:
-        """End the search now: the bounds proven so far, the best plan from them."""
-        self.stop.set()
-
-    def solve(self, problem: Problem, solution: Solution) -> Generator[Progress, None, Solution]:
-        s = problem.settings
-        t0 = time.perf_counter()
-        deadline = None if s.time_limit_s is None else t0 + s.time_limit_s
-        cands = yield from candidates_of(problem, solution)
-        inst = instance(
-            cands, problem, solution.covered, solution.counts, taken_candidates(cands, solution)
+def solve_whole(
+    problem: Problem,
+    solution: Solution,
+    deadline: float | None,
+    stop: threading.Event,
+) -> Generator[Progress, None, Solution]:
+    """The lp optimizer on the whole ground at once (see the module docstring): the
+    candidate set, the bounds and the best plan, whose sensors it then fixes."""
+    cands = yield from candidates_of(problem, solution)
+    inst = instance(
+        cands, problem, solution.covered, solution.counts, taken_candidates(cands, solution)
+    )
+    if problem.reached(solution.n_covered) or inst.goal <= 0:
+        solution.stop_reason = (
+            StopReason.reached(problem.rho)
+            if problem.reached(solution.n_covered)
+            else StopReason.out_of_sight("candidate pose")
         )
-        if problem.reached(solution.n_covered) or inst.goal <= 0:
-            solution.stop_reason = (
-                StopReason.reached(problem.rho)
-                if problem.reached(solution.n_covered)
-                else StopReason.out_of_sight("candidate pose")
-            )
-            return solution
-        chosen, bound = yield from prove_and_plan(
-            problem, cands, inst, solution, deadline, self.stop
-        )
-        solution.bound = bound
-        for c in in_gain_order(inst, chosen):
-            if problem.reached(solution.n_covered):
-                break
-            if len(solution.sensors) >= problem.max_sensors:
-                solution.stop_reason = StopReason.sensor_limit(problem.max_sensors)
-                return solution
-            sensor = fix_candidate(problem, solution, cands, c)
-            yield solution.progress("fixed", problem.rho, fixed=sensor)
-        late = self.stop.is_set() or (deadline is not None and time.perf_counter() > deadline)
-        if problem.reached(solution.n_covered):
-            solution.stop_reason = StopReason.reached(problem.rho, early=late)
-        else:
-            solution.stop_reason = StopReason.out_of_sight("candidate pose")
         return solution
+    chosen, bound, _ = yield from prove_and_plan(problem, cands, inst, solution, deadline, stop)
+    solution.bound = bound
+    for c in in_gain_order(inst, chosen):
+        if problem.reached(solution.n_covered):
+            break
+        if len(solution.sensors) >= problem.max_sensors:
+            solution.stop_reason = StopReason.sensor_limit(problem.max_sensors)
+            return solution
+        sensor = fix_candidate(problem, solution, cands, c)
+        yield solution.progress("fixed", problem.rho, fixed=sensor, stage="fixing")
+    late = stop.is_set() or (deadline is not None and time.perf_counter() > deadline)
+    if problem.reached(solution.n_covered):
+        solution.stop_reason = StopReason.reached(problem.rho, early=late)
+    else:
+        solution.stop_reason = StopReason.out_of_sight("candidate pose")
+    return solution

@@ -1,0 +1,348 @@
+"""The lp optimizer on a ground too large to plan whole: part by part.
+
+Two sensors 200 m apart never see the same target point, so a large ground is split
+into compact parts of its target points (``bound.parts_of``: halved at a quantile of
+the longer extent, again and again), and each part is planned on its own:
+
+1. its candidates: every mast position within sensor reach of one of its points, each
+   candidate's matrix row over the part's points only (``candidates.build_part``);
+   only one part's matrix is held at a time, so the memory follows the largest part;
+2. its LP and plans, as the whole ground's would be (``lp.prove_and_plan``) for its
+   share of the coverage goal; the plan's sensors are fixed at once, so the run has
+   a plan for the parts done (and a checkpoint of them) as soon as the first part is;
+3. after the last part, the sensors the seams made redundant (a sensor of one part
+   covering what the next part's covers too) are dropped while the goal stays met.
+
+**The bound stays a proof for the whole ground.** The parts' bounds cannot simply be
+added: a candidate near a border serves two parts and would be paid twice. So each
+part's LP prices a candidate at its *share* of its cost, the fraction of the points it
+covers that lie in the part; a site (mast position) likewise. For any plan of the
+whole ground, its candidates that see part p form a plan of part p covering what it
+covers there, at the shared cost; over the parts the shares add up to the plan's cost.
+So the sum of the parts' LP values, each at the goal the plan meets in it, is at most
+the plan's cost. Each part's LP duals give its value as a line in its goal
+(``bound.LPSolution.slope``), and ``bound.combined_bound`` takes the least total over
+every split of the whole goal among the parts: a lower bound on every plan, whatever
+split the parts were solved at. A part not solved yet counts 0 at any goal. The same
+holds for the fewest masts, with the LP over sites (a site covers what any of its
+candidates covers; with k > 1 it adds at most min(its candidates there, k) to a
+point). The cost bound is mast_cost x masts + sensor_cost x sensors, each rounded up.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Generator
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import sparse
+
+from ..candidates import CandidateSet, PartCandidates, build_part
+from ..problem import Problem
+from .base import (
+    FixedSensor,
+    PlanBound,
+    Progress,
+    Solution,
+    StopReason,
+    fix_candidate,
+    newly_covered,
+    taken_candidates,
+)
+from .bound import combined_bound, cover_lp, parts_of
+from .cover import CoverInstance
+from .lp import in_gain_order, prove_and_plan
+
+F64 = NDArray[np.float64]
+I64 = NDArray[np.int64]
+Line = tuple[float, float]
+
+
+def part_count(problem: Problem) -> int:
+    """How many parts the problem's target is planned in: as its estimate says
+    (``budget.part_count``), so that the memory estimated is the memory used."""
+    return problem.estimate.parts
+
+
+def split_instance(
+    cands: CandidateSet,
+    points: I64,
+    covered: NDArray[np.bool_],
+    counts: NDArray[np.int32],
+    need: NDArray[np.int32],
+    xy: F64,
+    cap: int,
+    taken: I64,
+) -> tuple[CoverInstance, I64]:
+    """The cover instance of a part (goal 0; set it with ``replace``): its points
+    (ordinals ``points``, the matrix's columns) not yet ``covered``, each needing its
+    k less ``counts``; the ``taken`` candidates (fixed already) cover nothing more.
+    Returns it and the ordinals of its columns."""
+    matrix = cands.matrix
+    if len(taken):
+        keep = np.ones(matrix.shape[0], dtype=matrix.dtype)
+        keep[taken] = 0
+        matrix = (sparse.diags(keep) @ matrix).tocsr()
+        matrix.eliminate_zeros()
+    cols = np.flatnonzero(~covered[points])
+    matrix = matrix[:, cols].tocsr()
+    ordinals = points[cols]
+    left = np.maximum(need[ordinals] - counts[ordinals], 1).astype(np.int32)
+    inst = CoverInstance(matrix, 0, xy[ordinals], need=left, site_of=cands.position, cap=cap)
+    return inst, ordinals
+
+
+def coverable(inst: CoverInstance) -> int:
+    """Points of ``inst`` that at least their k candidates see: the most any plan covers."""
+    seen_by = np.bincount(inst.matrix.indices, minlength=inst.n_points)
+    return int(np.count_nonzero(seen_by >= inst.k))
+
+
+def site_line(
+    inst: CoverInstance,
+    part: PartCandidates,
+    standing: NDArray[np.bool_],
+    deadline: float | None,
+    stop: threading.Event | None,
+) -> Generator[None, None, tuple[Line, int]]:
+    """The part's fewest-masts LP as a line in its goal (see the module docstring):
+    sites as columns at their share of one mast (0 where a mast stands), each
+    covering what its candidates cover (k > 1: at most min(their count, k) a point).
+    Returns the line and the LP's rounds."""
+    cands = part.cands
+    col = np.searchsorted(part.sites, cands.position)
+    pick = sparse.csr_matrix(
+        (np.ones(len(col)), (col, np.arange(len(col)))), shape=(len(part.sites), len(cands))
+    )
+    sites = (pick @ inst.matrix.astype(np.float64)).tocsr()
+    sites.sort_indices()
+    sites.data = np.minimum(sites.data, inst.k[sites.indices]) if inst.multi else sites.data * 0 + 1
+    cost = np.where(standing[part.sites], 0.0, part.site_share)
+    every = np.arange(len(part.sites), dtype=np.int64)
+    site_inst = CoverInstance(sites, inst.goal, need=inst.k)
+    lp = yield from _quiet(
+        cover_lp(site_inst, cost, every, every, integral=False, deadline=deadline, stop=stop)
+    )
+    return (lp.slope, lp.intercept), lp.rounds
+
+
+def _quiet(gen: Generator[Any, None, Any]) -> Generator[None, None, Any]:
+    """``gen``'s value, yielding None for whatever it yields."""
+    try:
+        while True:
+            try:
+                next(gen)
+            except StopIteration as done:
+                return done.value
+            yield None
+    finally:
+        gen.close()
+
+
+def whole_bound(
+    problem: Problem,
+    sensor_lines: list[Line],
+    mast_lines: list[Line],
+    coverable: list[int],
+    goal: int,
+    rounds: int,
+    dearest: float | None,
+) -> PlanBound:
+    """The proven bound of the whole ground from the parts' lines (module docstring).
+    dearest: with models of different costs, the dearest sensor's cost (the sensors
+    LP priced each candidate at its model's cost); None when all cost the same."""
+    lp = combined_bound(sensor_lines, coverable, goal)
+    masts_lp = combined_bound(mast_lines, coverable, goal)
+    if dearest is None:
+        sensors = max(0, math.ceil(lp - 1e-6))
+        sensor_cost = float(problem.sensor_costs[0]) * sensors
+    else:
+        sensors = max(0, math.ceil(lp / dearest - 1e-6)) if dearest > 0 else 0
+        sensor_cost = lp
+    standing = int(np.count_nonzero(problem.space.standing))
+    cap = problem.settings.max_sensors_per_mast
+    masts = max(max(0, math.ceil(masts_lp - 1e-6)), math.ceil((sensors - cap * standing) / cap))
+    return PlanBound(
+        sensors=sensors,
+        masts=max(masts, 0),
+        lp=lp,
+        scope=f"plans on the candidate set, proven part by part ({len(coverable)} parts)",
+        rounds=rounds,
+        sensor_cost_lp=sensor_cost,
+    )
+
+
+def prune(problem: Problem, solution: Solution, first: int) -> int:
+    """Drop sensors fixed from index ``first`` on (this run's) that the goal does not
+    need, the least useful first (fewest points only it holds to their k; a sensor
+    alone on its mast before one that shares it), and fix the rest again in order.
+    Returns how many were dropped."""
+    assert solution.need is not None
+    sensors = solution.sensors
+    counts = solution.counts.copy()
+    need = solution.need
+    n_covered = solution.n_covered
+    at = [(s.pose.x, s.pose.y) for s in sensors]
+    per_mast = {xy: at.count(xy) for xy in set(at)}
+
+    def seen(s: FixedSensor) -> I64:
+        return s.newly if s.seen is None else s.seen
+
+    def held(i: int) -> int:  # points that would drop below their k without sensor i
+        ords = seen(sensors[i])
+        return int(np.count_nonzero(counts[ords] == need[ords]))
+
+    order = sorted(range(first, len(sensors)), key=lambda i: (held(i), per_mast[at[i]], i))
+    dropped = set()
+    for i in order:
+        lost = held(i)
+        if n_covered - lost >= problem.goal:
+            ords = seen(sensors[i])
+            counts[ords] -= 1
+            n_covered -= lost
+            dropped.add(i)
+    if not dropped:
+        return 0
+    kept = [s for i, s in enumerate(sensors) if i not in dropped]
+    solution.sensors = []
+    solution.counts[:] = 0
+    solution.covered[:] = False
+    solution.n_covered = 0
+    for s in kept:
+        solution.fix(replace(s, newly=newly_covered(solution, seen(s))))
+    return len(dropped)
+
+
+def solve_in_parts(
+    problem: Problem,
+    solution: Solution,
+    n_parts: int,
+    deadline: float | None,
+    stop: threading.Event,
+) -> Generator[Progress, None, Solution]:
+    """Plan the problem part by part (see the module docstring); fixes the sensors of
+    each part as it is solved, sets the solution's bound and stop reason."""
+    rho, s = problem.rho, problem.settings
+    t0 = time.perf_counter()
+    xy = problem.grid.target_xy
+    part_of = parts_of(xy, n_parts)
+    start_covered = solution.covered.copy()
+    start_counts = solution.counts.copy()
+    first = len(solution.sensors)
+    assert solution.need is not None
+    open_points = [np.count_nonzero(~start_covered[part_of == k]) for k in range(n_parts)]
+    total_open = max(sum(open_points), 1)
+    goal = max(0, problem.goal - solution.n_covered)
+    sensor_lines: list[Line] = [(0.0, 0.0)] * n_parts
+    mast_lines: list[Line] = [(0.0, 0.0)] * n_parts
+    reach = list(open_points)  # what each part can cover: at most its open points
+    rounds = 0
+    costs = problem.sensor_costs
+    mixed = s.objective == "cost" and not np.all(costs == costs[0])
+    dearest = float(costs.max()) if mixed else None
+    carry = 0  # goal the parts so far fell short of: the next part's to meet
+    reach_m = max(m.range_m for m in problem.models)
+    stopped = False
+
+    def bound_now() -> PlanBound:
+        return whole_bound(
+            problem, sensor_lines, mast_lines, reach, min(goal, sum(reach)), rounds, dearest
+        )
+
+    def late() -> bool:
+        return stop.is_set() or (deadline is not None and time.perf_counter() > deadline)
+
+    def where(p: Progress, k: int, stage: str, finished: bool = False) -> Progress:
+        """``p`` with the whole ground's bound and plan, in part k (0-based)."""
+        done = sum(open_points[: k + finished])
+        spent = time.perf_counter() - t0
+        eta = spent * (total_open - done) / done if done else None
+        masts = len({(f.pose.x, f.pose.y) for f in solution.sensors[first:]})
+        return replace(
+            p,
+            stage=p.stage or stage,
+            part=k + 1,
+            parts=n_parts,
+            bound=bound_now().objective(s.objective, s.mast_cost, s.sensor_cost),
+            best=None,
+            plan=(len(solution.sensors) - first, masts),
+            eta_s=eta,
+        )
+
+    for k in range(n_parts):
+        target = math.ceil(goal * open_points[k] / total_open) + carry
+        if target <= 0 or open_points[k] == 0:
+            continue
+        if late():
+            stopped = True
+            break
+        points = np.flatnonzero(part_of == k)
+        build = build_part(problem, points, reach_m)
+        while True:
+            try:
+                next(build)
+            except StopIteration as done:
+                part: PartCandidates = done.value
+                break
+            yield where(solution.progress("search", rho), k, "candidates")
+        cands = part.cands
+        taken = taken_candidates(cands, solution)
+        inst, ordinals = split_instance(
+            cands, points, start_covered, start_counts, solution.need, xy,
+            s.max_sensors_per_mast, taken,
+        )  # fmt: skip
+        reach[k] = coverable(inst)
+        part_goal = min(reach[k], target)
+        inst = replace(inst, goal=part_goal)
+        if part_goal > 0:
+            # The rest of the time, shared by the parts left by their points.
+            share = open_points[k] / max(sum(open_points[k:]), 1)
+            part_deadline = None
+            if deadline is not None:
+                part_deadline = time.perf_counter() + (deadline - time.perf_counter()) * share
+            unit = costs[cands.model] if mixed else 1.0
+            solve = prove_and_plan(
+                problem, cands, inst, solution, part_deadline, stop, lp_cost=unit * part.share
+            )
+            while True:
+                try:
+                    p = next(solve)
+                except StopIteration as done:
+                    chosen, _, lp = done.value
+                    break
+                yield where(p, k, "solve")
+            sensor_lines[k] = (lp.slope, lp.intercept)
+            rounds += lp.rounds
+            line, site_rounds = yield from _quiet(
+                site_line(inst, part, problem.space.standing, part_deadline, stop)
+            )
+            mast_lines[k] = line
+            rounds += site_rounds
+            for c in in_gain_order(inst, chosen):
+                if len(solution.sensors) >= problem.max_sensors:
+                    break
+                sensor = fix_candidate(problem, solution, cands, c)
+                yield where(solution.progress("fixed", rho, fixed=sensor), k, "fixing")
+        got = int(np.count_nonzero(solution.covered[ordinals]))
+        carry = max(0, target - got)
+        del part, cands, inst  # the part's matrix goes before the next part's is built
+        yield where(solution.progress("search", rho), k, "part done", finished=True)
+    dropped = prune(problem, solution, first)
+    solution.bound = bound_now()
+    if problem.reached(solution.n_covered):
+        solution.stop_reason = StopReason.reached(rho, early=stopped or late())
+    elif stopped:
+        solution.stop_reason = (
+            "Stopped early: the plan covers the parts planned by then "
+            f"({solution.coverage:.2%} of the target)."
+        )
+    else:
+        solution.stop_reason = StopReason.out_of_sight("candidate pose")
+    if dropped:
+        solution.stop_reason += f" {dropped} sensor(s) the parts' seams made redundant dropped."
+    return solution
