@@ -15,6 +15,7 @@ refused with one line naming the setting to change.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -136,8 +137,12 @@ class SearchSpace:
 
     def member(self, x: float, y: float) -> bool:
         """Whether (x, y) is one of the positions."""
+        return self.index_of(x, y) is not None
+
+    def index_of(self, x: float, y: float) -> int | None:
+        """The index of position (x, y), or None when it is not one."""
         k = self._index.get(self._key(x, y))
-        return k is not None and bool(np.all(self.positions[k] == (x, y)))
+        return k if k is not None and bool(np.all(self.positions[k] == (x, y))) else None
 
     def snap(self, x: float, y: float) -> tuple[float, float]:
         """The lattice point nearest to (x, y) (it may lie outside the areas)."""
@@ -183,6 +188,8 @@ class Problem:
         workers: int = 1,
         standing: F64 | None = None,
     ) -> None:
+        # The run's clock: a time limit counts from here (``optimize/planner.py``).
+        self.t0 = time.perf_counter()
         self.settings = settings = settings.validated()
         pack = SensorPack.of(model)
         pack.check_optimizer(settings.optimizer)

@@ -107,7 +107,8 @@ class Result:
     areas that set their own ``coverage_k``, (name, k). excluded: the parts of the
     sensor areas where no mast may stand, and why (``SceneModel.excluded``).
     targets_fingerprint: which ground's targets these are
-    (``SceneModel.targets_fingerprint``).
+    (``SceneModel.targets_fingerprint``). interrupted: the run was interrupted (Ctrl-C,
+    SIGTERM) and stopped early: the plan is the best it had by then.
     """
 
     sensors: tuple[SensorRecord, ...]
@@ -137,6 +138,7 @@ class Result:
     area_k: tuple[tuple[str, int], ...] = ()
     excluded: tuple[Exclusion, ...] = ()
     targets_fingerprint: str = ""
+    interrupted: bool = False
 
     @property
     def k_need(self) -> I32:

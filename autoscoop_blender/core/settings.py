@@ -419,7 +419,9 @@ class OptimizeSettings(CoverageSettings):
     )
     time_limit_s: float | None = knob(
         None,
-        "lp: stop the search after this many seconds with the best plan and its proven gap",
+        "lp: end the run after at most this many seconds with the best plan by then and "
+        "its proven gap (default: 240 s for each part of the ground of up to 20,000 "
+        "target points)",
         lo=0.0,
         lo_open=True,
         flag="--time-limit",

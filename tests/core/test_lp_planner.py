@@ -16,6 +16,7 @@ import pytest
 from autoscoop_blender.core.candidates import CandidateSet
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA, SensorPose
 from autoscoop_blender.core.optimize import lp as lp_module
+from autoscoop_blender.core.optimize import planner as planner_module
 from autoscoop_blender.core.optimize.base import FixedSensor, Solution, StopReason
 from autoscoop_blender.core.optimize.bound import LPSolution, SiteSolution
 from autoscoop_blender.core.optimize.cover import CoverInstance
@@ -69,6 +70,7 @@ class HandLP:
         self.grid = SimpleNamespace(target_xy=np.zeros((n_points, 2)), spacing=2.0)
         self.settings = OptimizeSettings(optimizer="lp", **settings)
         self.estimate = SimpleNamespace(parts=1)  # planned whole
+        self.t0 = time.perf_counter()  # the run's clock
 
     def reached(self, n_covered):
         return n_covered >= self.goal
@@ -861,14 +863,24 @@ def test_the_lp_optimizer_stops_fixing_at_the_goal():
     assert [(r.phase, r.rho) for r in reports if r.fixed] == [("fixed", 1.0)]
 
 
-def test_the_lp_optimizer_hands_on_its_deadline_and_stop(monkeypatch):
+@pytest.mark.parametrize(
+    "limit, parts, search_s",
+    [(100.0, 1, 95.0), (20.0, 1, 17.0), (None, 1, 228.0), (None, 3, 684.0)],
+)
+def test_the_lp_optimizer_hands_on_its_deadline_and_stop(monkeypatch, limit, parts, search_s):
+    """The search ends when the run's limit (from the problem's start) less what the
+    finish needs has passed: 5 % of the limit, at least 3 s; by default 240 s a part."""
     calls = spy(monkeypatch, "prove_and_plan")
-    problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="sensors", time_limit_s=100.0)
+    problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="sensors", time_limit_s=limit)
+    problem.t0 -= 10.0  # the problem took 10 s to build
+    assert planner_module.time_limit(problem.settings, parts) == (limit or 240.0 * parts)
     planner = LPPlanner()
-    t0 = time.perf_counter()
     res = steps(planner.solve(problem, Solution(np.zeros(7, bool))))[0]
     (call,) = calls["prove_and_plan"]
-    assert t0 + 100.0 <= call["deadline"] <= time.perf_counter() + 100.0
+    if parts == 1:
+        assert call["deadline"] == pytest.approx(problem.t0 + search_s, abs=1e-9)
+    assert planner_module.search_deadline(problem.t0, planner_module.time_limit(
+        problem.settings, parts)) == pytest.approx(problem.t0 + search_s)  # fmt: skip
     assert call["stop"] is planner.stop
     assert res.stop_reason == StopReason.reached(1.0)  # well within its time
 

@@ -87,6 +87,10 @@ MAX_MILP_CANDIDATES = 4000
 # two_routes (16,555 points) is solved whole, three tiles of full_ground (49,665) in
 # three parts.
 PART_POINTS = 20_000
+# A part's LP (``parts.py``) stops once its bound is within this fraction of its value
+# (0.5 % took two_routes' parts twice as long as the whole LP, which stops once its
+# integer bound is final).
+PART_REL_GAP = 0.02
 # Once stopped (Esc, Ctrl-C), plans are rounded from the LP for at most this long, s:
 # an interrupted run ends within 5 s (two_routes rounds its 5 plans in about 1 s).
 STOPPED_PLANS_S = 1.5
@@ -302,6 +306,7 @@ def prove_bound(
     stop: threading.Event | None = None,
     plan: bool = False,
     lp_cost: F64 | None = None,
+    lp_inst: CoverInstance | None = None,
 ) -> Generator[Progress, None, tuple[PlanBound, LPSolution, list[int] | None, list[Cover]]]:
     """The lower bounds: the LP by column generation from a greedy plan's columns and,
     beside it, the fewest masts (then, when ``plan``, the best plan on them). Returns
@@ -310,7 +315,9 @@ def prove_bound(
     Progress reports the best greedy plan's objective and, as it rises, what the LP
     proves of the objective (sensor_cost x its bound for cost; nothing yet for masts).
     lp_cost: (C,) the LP's cost per candidate instead of one per sensor (or its
-    model's cost): a part's shares (``parts.py``)."""
+    model's cost); lp_inst: the instance the LP is solved on, when not ``inst``: a
+    part's LP bounds the part with nothing fixed, while its plans cover what the
+    parts before left (``parts.py``)."""
     s = problem.settings
     price = sensor_price(problem, cands) if s.objective == "cost" else 1.0
     every = np.arange(len(cands), dtype=np.int64)
@@ -329,7 +336,15 @@ def prove_bound(
     per_sensor = {"cost": unit, "sensors": 1.0}.get(s.objective)
     n_parts = 1 if inst.xy is None else math.ceil(inst.n_points / PART_POINTS)
     initial = np.array(greedy.chosen, dtype=np.int64)
-    if inst.xy is not None and n_parts > 1:
+    if lp_inst is not None:
+        start = complete(Cover(lp_inst), every, sensor_cost=price).chosen
+        # A part's LP gives its bound as a line in its goal: solved near its end,
+        # as ``split_cover_lp`` solves its parts.
+        lp_gen = cover_lp(
+            lp_inst, ones, cands.position, np.array(start, dtype=np.int64), integral=False,
+            deadline=deadline, stop=stop, rel_gap=PART_REL_GAP,
+        )  # fmt: skip
+    elif inst.xy is not None and n_parts > 1:
         part = parts_of(inst.xy, n_parts)
         lp_gen = split_cover_lp(
             inst, ones, cands.position, initial, part, deadline=deadline, stop=stop
@@ -362,10 +377,11 @@ def prove_and_plan(
     deadline: float | None,
     stop: threading.Event | None = None,
     lp_cost: F64 | None = None,
+    lp_inst: CoverInstance | None = None,
 ) -> Generator[Progress, None, tuple[list[int], PlanBound, LPSolution]]:
     """The bounds, the best plan of candidates (see the module docstring) and the LP;
     ``stop`` ends the search early: the bounds so far, and plans rounded from the LP
-    so far for at most ``STOPPED_PLANS_S`` (at least one). lp_cost: as for
+    so far for at most ``STOPPED_PLANS_S`` (at least one). lp_cost, lp_inst: as for
     ``prove_bound``."""
     s = problem.settings
 
@@ -373,7 +389,7 @@ def prove_and_plan(
         return plan_value(problem, cands, plan)
 
     bound, lp, on_sites, greedies = yield from prove_bound(
-        problem, cands, inst, solution, deadline, stop=stop, plan=True, lp_cost=lp_cost
+        problem, cands, inst, solution, deadline, stop, True, lp_cost, lp_inst
     )
     lower = bound.objective(s.objective, s.mast_cost, s.sensor_cost)
     plans = [g.chosen for g in greedies if g.slack >= 0] + ([on_sites] if on_sites else [])

@@ -31,10 +31,12 @@ point). The cost bound is mast_cost x masts + sensor_cost x sensors, each rounde
 
 from __future__ import annotations
 
+import copy
 import math
 import threading
 import time
-from collections.abc import Generator
+from collections.abc import Generator, Iterator
+from contextlib import contextmanager
 from dataclasses import replace
 from typing import Any
 
@@ -129,6 +131,33 @@ def site_line(
         cover_lp(site_inst, cost, every, every, integral=False, deadline=deadline, stop=stop)
     )
     return (lp.slope, lp.intercept), lp.rounds
+
+
+def _mast_sites(problem: Problem, sensors: list[FixedSensor]) -> I64:
+    """The positions (indices into the problem's) of the sensors' masts."""
+    space = problem.space
+    return np.array(
+        sorted({space.index_of(f.pose.x, f.pose.y) for f in sensors} - {None}), dtype=np.int64
+    )
+
+
+@contextmanager
+def _standing_too(problem: Problem, sites: I64) -> Iterator[None]:
+    """Within the block the problem's search space counts a mast as standing at
+    ``sites`` too (a part's plan puts sensors on the masts of the parts before at no
+    mast cost); the space itself is not changed."""
+    space = problem.space
+    if len(sites) == 0:
+        yield
+        return
+    other = copy.copy(space)
+    other.standing = space.standing.copy()
+    other.standing[sites] = True
+    problem.space = other
+    try:
+        yield
+    finally:
+        problem.space = space
 
 
 def _quiet(gen: Generator[Any, None, Any]) -> Generator[None, None, Any]:
@@ -274,63 +303,82 @@ def solve_in_parts(
             eta_s=eta,
         )
 
+    def busy(gen: Generator[Any, None, Any], k: int, stage: str) -> Generator[Progress, None, Any]:
+        """``gen``'s value, reporting progress in part k while it works."""
+        try:
+            while True:
+                try:
+                    next(gen)
+                except StopIteration as done:
+                    return done.value
+                yield where(solution.progress("search", rho), k, stage)
+        finally:
+            gen.close()
+
     for k in range(n_parts):
-        target = math.ceil(goal * open_points[k] / total_open) + carry
-        if target <= 0 or open_points[k] == 0:
+        # Each part covers rho of its own points (what covers them already counts),
+        # and what the parts before fell short of: the goal is met part by part, and
+        # a resumed run skips the parts it finished.
+        points = np.flatnonzero(part_of == k)
+        have = int(np.count_nonzero(solution.covered[points]))
+        target = max(0, math.ceil(rho * len(points)) - have) + carry
+        if target <= 0:
             continue
         if late():
             stopped = True
             break
-        points = np.flatnonzero(part_of == k)
-        build = build_part(problem, points, reach_m)
-        while True:
-            try:
-                next(build)
-            except StopIteration as done:
-                part: PartCandidates = done.value
-                break
-            yield where(solution.progress("search", rho), k, "candidates")
+        part: PartCandidates = yield from busy(
+            build_part(problem, points, reach_m), k, "candidates"
+        )
         cands = part.cands
         taken = taken_candidates(cands, solution)
-        inst, ordinals = split_instance(
+        # The part as the bound sees it (nothing fixed but what the run started
+        # with) and as its plan does (what the parts before cover is covered).
+        full, _ = split_instance(
             cands, points, start_covered, start_counts, solution.need, xy,
             s.max_sensors_per_mast, taken,
         )  # fmt: skip
-        reach[k] = coverable(inst)
-        part_goal = min(reach[k], target)
-        inst = replace(inst, goal=part_goal)
-        if part_goal > 0:
+        reach[k] = coverable(full)
+        # Its LP is solved at its share of the whole goal (its line holds at any).
+        full = replace(full, goal=min(reach[k], math.ceil(goal * open_points[k] / total_open)))
+        left, _ = split_instance(
+            cands, points, solution.covered, solution.counts, solution.need, xy,
+            s.max_sensors_per_mast, taken,
+        )  # fmt: skip
+        left = replace(left, goal=min(coverable(left), target))
+        if left.goal > 0 and full.goal > 0:
             # The rest of the time, shared by the parts left by their points.
             share = open_points[k] / max(sum(open_points[k:]), 1)
             part_deadline = None
             if deadline is not None:
                 part_deadline = time.perf_counter() + (deadline - time.perf_counter()) * share
             unit = costs[cands.model] if mixed else 1.0
-            solve = prove_and_plan(
-                problem, cands, inst, solution, part_deadline, stop, lp_cost=unit * part.share
-            )
-            while True:
-                try:
-                    p = next(solve)
-                except StopIteration as done:
-                    chosen, _, lp = done.value
-                    break
-                yield where(p, k, "solve")
+            used = _mast_sites(problem, solution.sensors[first:])
+            with _standing_too(problem, used):  # a mast of a part before costs nothing more
+                solve = prove_and_plan(
+                    problem, cands, left, solution, part_deadline, stop, unit * part.share, full
+                )
+                while True:
+                    try:
+                        p = next(solve)
+                    except StopIteration as done:
+                        chosen, _, lp = done.value
+                        break
+                    yield where(p, k, "solve")
             sensor_lines[k] = (lp.slope, lp.intercept)
             rounds += lp.rounds
-            line, site_rounds = yield from _quiet(
-                site_line(inst, part, problem.space.standing, part_deadline, stop)
-            )
+            masts_lp = site_line(full, part, problem.space.standing, part_deadline, stop)
+            line, site_rounds = yield from busy(masts_lp, k, "bounds")
             mast_lines[k] = line
             rounds += site_rounds
-            for c in in_gain_order(inst, chosen):
+            for c in in_gain_order(left, chosen):
                 if len(solution.sensors) >= problem.max_sensors:
                     break
                 sensor = fix_candidate(problem, solution, cands, c)
                 yield where(solution.progress("fixed", rho, fixed=sensor), k, "fixing")
-        got = int(np.count_nonzero(solution.covered[ordinals]))
+        got = int(np.count_nonzero(solution.covered[points])) - have
         carry = max(0, target - got)
-        del part, cands, inst  # the part's matrix goes before the next part's is built
+        del part, cands, full, left  # the part's matrix goes before the next part's is built
         yield where(solution.progress("search", rho), k, "part done", finished=True)
     dropped = prune(problem, solution, first)
     solution.bound = bound_now()

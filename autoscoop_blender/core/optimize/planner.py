@@ -5,13 +5,35 @@ for that, part by part (``parts.py``); the problem's estimate decides
 from __future__ import annotations
 
 import threading
-import time
 from collections.abc import Generator
 
 from ..problem import Problem
+from ..settings import OptimizeSettings
 from .base import Progress, Solution
 from .lp import solve_whole
 from .parts import part_count, solve_in_parts
+
+# The default time budget, per part of the ground (``budget.part_count``): two_routes
+# plans in 84-88 s, well within it; with k = 2 it ends within 5 minutes.
+DEFAULT_LIMIT_S_PER_PART = 240.0
+# Of a time limit, what is kept for the work after the search (fixing the plan's
+# sensors, masts, the report): two_routes' took 4 s.
+FINISH_SHARE = 0.05
+FINISH_MIN_S = 3.0
+
+
+def time_limit(settings: OptimizeSettings, n_parts: int) -> float:
+    """The run's time limit, s: ``time_limit_s``, else the default budget of
+    ``DEFAULT_LIMIT_S_PER_PART`` a part."""
+    if settings.time_limit_s is not None:
+        return settings.time_limit_s
+    return DEFAULT_LIMIT_S_PER_PART * n_parts
+
+
+def search_deadline(t0: float, limit_s: float) -> float:
+    """When the search must end (``time.perf_counter()``) for a run started at ``t0``
+    to end within ``limit_s``: the finish's share of the limit kept for it."""
+    return t0 + limit_s - max(FINISH_MIN_S, FINISH_SHARE * limit_s)
 
 
 class LPPlanner:
@@ -30,9 +52,8 @@ class LPPlanner:
         self.stop.set()
 
     def solve(self, problem: Problem, solution: Solution) -> Generator[Progress, None, Solution]:
-        s = problem.settings
-        deadline = None if s.time_limit_s is None else time.perf_counter() + s.time_limit_s
         n_parts = part_count(problem)
+        deadline = search_deadline(problem.t0, time_limit(problem.settings, n_parts))
         if n_parts > 1:
             return (yield from solve_in_parts(problem, solution, n_parts, deadline, self.stop))
         return (yield from solve_whole(problem, solution, deadline, self.stop))

@@ -1,0 +1,183 @@
+"""The lp optimizer part by part (``optimize/parts.py``): the same candidates as the
+whole ground's, split without loss; a bound that never passes the whole ground's; a
+joined plan whose coverage an independent recount confirms; stop and resume."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import shapely
+from numpy.typing import NDArray
+
+from autoscoop_blender.core import budget
+from autoscoop_blender.core.candidates import build_candidates, build_part
+from autoscoop_blender.core.coverage.base import place
+from autoscoop_blender.core.coverage.targeted import TargetedEvaluator
+from autoscoop_blender.core.geom.grid import GroundGrid
+from autoscoop_blender.core.model.scene import Area, SceneModel
+from autoscoop_blender.core.model.sensors import PAPER_CAMERA, SensorPose
+from autoscoop_blender.core.optimize import parts as parts_module
+from autoscoop_blender.core.optimize.base import FixedSensor, Solution, newly_covered
+from autoscoop_blender.core.optimize.bound import parts_of
+from autoscoop_blender.core.problem import Problem
+from autoscoop_blender.core.run import Run
+from autoscoop_blender.core.settings import OptimizeSettings
+from tests.core.flat import box_caster, box_mesh
+from tests.core.test_lp import drain
+
+# A road 240 m long with a strip for masts beside it, and a wall that hides a stretch of
+# it from the strip's middle: 600 target points at 2 m, three parts of 200.
+ROAD = shapely.box(0, -5, 240, 5)
+STRIP = shapely.box(0, 8, 240, 12)
+WALL = [((110.0, 6.0, 0.0), (130.0, 7.0, 8.0))]
+PART_POINTS = 200
+
+
+def road(k: int | None = None) -> SceneModel:
+    vertices, faces = box_mesh(WALL)
+    return SceneModel(
+        vertices=vertices,
+        faces=faces,
+        occluders=("Wall",),
+        targets=(Area("Road", ROAD, coverage_k=k),),
+        sensor_areas=(Area("Strip", STRIP),),
+    )
+
+
+def recount(scene: SceneModel, result) -> NDArray[np.int64]:
+    """(N,) sensors covering each target point, each sensor evaluated afresh by the
+    plain targeted evaluator on a grid of its own (not the optimizer's cached probe)."""
+    caster = box_caster(WALL)()
+    grid = GroundGrid(scene, caster, result.cell_m, reach_m=PAPER_CAMERA.range_m)
+    ev = TargetedEvaluator(grid, caster)
+    counts = np.zeros(grid.n_targets, dtype=np.int64)
+    for f in result.sensors:
+        x, y = np.array([f.x, f.y]) - result.origin[:2]
+        pose = place(grid, x, y, f.height_m, f.pitch_deg, f.yaw_deg)
+        counts[ev.evaluate(PAPER_CAMERA, pose).covered] += 1
+    return counts
+
+
+def settings(**kw) -> OptimizeSettings:
+    return OptimizeSettings(optimizer="lp", grid_m=2.0, position_step_m=4.0, **kw)
+
+
+@pytest.fixture
+def small_parts(monkeypatch):
+    """Parts of ``PART_POINTS`` points (the road: 3 parts) while the test runs."""
+    monkeypatch.setattr(budget, "PART_POINTS", PART_POINTS)
+
+
+def test_the_parts_candidates_are_the_whole_grounds_split_by_point(small_parts):
+    """Every (candidate, point) of the whole ground's matrix is in exactly one part's,
+    and the parts' shares of a candidate add up to 1 (so its cost is paid once)."""
+    problem = Problem(road(), box_caster(WALL)(), PAPER_CAMERA, settings())
+    assert problem.estimate.parts == math.ceil(problem.n_targets / PART_POINTS) == 3
+    whole = drain(build_candidates(problem))
+    key = {
+        (int(p), int(o), int(m)): c
+        for c, (p, o, m) in enumerate(zip(whole.position, whole.orientation, whole.model))
+    }
+    split = parts_of(problem.grid.target_xy, 3)
+    got = np.zeros(whole.matrix.shape, dtype=np.int32)
+    share = np.zeros(len(whole))
+    for k in range(3):
+        points = np.flatnonzero(split == k)
+        part = drain(build_part(problem, points, PAPER_CAMERA.range_m))
+        cands = part.cands
+        assert cands.matrix.shape[1] == len(points)
+        for c in range(len(cands)):
+            w = key[(int(cands.position[c]), int(cands.orientation[c]), int(cands.model[c]))]
+            got[w, points[cands.matrix[c].indices]] += 1
+            share[w] += part.share[c]
+        assert set(part.sites.tolist()) == set(cands.position.tolist())
+        assert np.all((part.site_share > 0) & (part.site_share <= 1))
+    np.testing.assert_array_equal(got, whole.matrix.toarray().astype(np.int32))
+    np.testing.assert_allclose(share, 1.0)
+
+
+@pytest.mark.parametrize("k", [1, 2])
+def test_the_part_wise_bound_never_passes_the_whole_grounds(k, monkeypatch):
+    """The same road whole and in 3 parts: every part-wise bound (sensors, masts, cost)
+    is at most the whole ground's, which is at most the whole plan's; the joined plan
+    covers the goal, as a recount with a fresh evaluator says."""
+    s = settings(coverage_k=k, rho=0.9)
+    whole = Run(road(k), box_caster(WALL), PAPER_CAMERA, s).result()
+    monkeypatch.setattr(budget, "PART_POINTS", PART_POINTS)
+    run = Run(road(k), box_caster(WALL), PAPER_CAMERA, s)
+    assert run.problem.estimate.parts == 3
+    parts = run.result()
+    w, p = whole.metrics, parts.metrics
+    assert p["sensors_lower_bound"] <= w["sensors_lower_bound"] <= w["sensors"]
+    assert p["masts_lower_bound"] <= w["masts_lower_bound"] <= w["masts"]
+    assert p["lower_bound"] <= w["lower_bound"] <= w["cost"]
+    assert p["lower_bound"] <= p["cost"]
+    assert p["sensors_lower_bound"] >= 1 and "3 parts" in p["bound_scope"]
+    counts = recount(road(k), parts)
+    np.testing.assert_array_equal(counts, parts.n_covered)
+    assert np.count_nonzero(counts >= k) >= math.ceil(0.9 * len(counts))
+    assert parts.stop_reason.startswith("Reached the goal")
+
+
+def test_a_stopped_run_keeps_the_parts_done_and_resume_finishes_it(small_parts):
+    """Stopped after its first part's sensors: the plan covers that part; resumed from
+    those sensors, the run builds no candidates for the part done and reaches the goal
+    with the same sensors first."""
+    s = settings(rho=0.9)
+    records: list[dict] = []
+    run = Run(road(), box_caster(WALL), PAPER_CAMERA, s, on_fixed=records.append)
+    built = []
+    real = parts_module.build_part
+
+    def spy(problem, points, reach_m):
+        built.append(points)
+        return real(problem, points, reach_m)
+
+    parts_module.build_part = spy
+    try:
+        for progress in run.steps():
+            if progress.phase == "search" and progress.stage == "part done":
+                run.stop_early()
+        first = run.result()
+        assert len(built) == 1  # the second part was never started
+        assert "Stopped early" in first.stop_reason
+        assert 0 < first.metrics["coverage_fraction"] < 0.9
+        assert first.metrics["sensors"] == len(records)
+        built.clear()
+        resumed = Run(road(), box_caster(WALL), PAPER_CAMERA, s, resume=records).result()
+    finally:
+        parts_module.build_part = real
+    done_part = np.flatnonzero(parts_of(run.problem.grid.target_xy, 3) == 0)
+    assert len(built) == 2 and not any(np.array_equal(b, done_part) for b in built)
+    assert resumed.stop_reason.startswith("Reached the goal")
+    before = [(r["x"], r["y"], r["pitch_deg"], r["yaw_deg"]) for r in records]
+    after = [(x.x, x.y, x.pitch_deg, x.yaw_deg) for x in resumed.sensors[: len(before)]]
+    origin = resumed.origin
+    assert after == [(x + origin[0], y + origin[1], p, yw) for x, y, p, yw in before]
+
+
+def test_prune_drops_what_the_seams_made_redundant():
+    """Three sensors over points 0-5: the middle one covers only what the others do, so
+    it goes; the counts and 'newly' of the two kept are fixed again in order."""
+    problem = type("P", (), {"goal": 6})()
+    solution = Solution(np.zeros(6, bool))
+
+    def sensor(x, seen):
+        seen = np.array(seen, dtype=np.int64)
+        return FixedSensor(SensorPose(x, 0, 5, 5, 10, 0), 0.0, 0, 0, seen, seen)
+
+    for f in (sensor(0, [0, 1, 2, 3]), sensor(10, [2, 3]), sensor(20, [3, 4, 5])):
+        solution.fix(FixedSensor(f.pose, 0.0, 0, 0, newly_covered(solution, f.seen), f.seen))
+    assert parts_module.prune(problem, solution, 0) == 1
+    assert [f.pose.x for f in solution.sensors] == [0, 20]
+    assert solution.counts.tolist() == [1, 1, 1, 2, 1, 1] and solution.n_covered == 6
+    assert solution.sensors[1].newly.tolist() == [4, 5]
+    # Sensors fixed before ``first`` (another run's) are never dropped.
+    solution.fix(
+        FixedSensor(SensorPose(30, 0, 5, 5, 10, 0), 0.0, 0, 0, np.zeros(0, np.int64), np.array([0]))
+    )
+    assert parts_module.prune(problem, solution, 3) == 0 and len(solution.sensors) == 3
+    assert parts_module.prune(problem, solution, 2) == 1 and len(solution.sensors) == 2
+    assert parts_module.prune(problem, solution, 0) == 0
