@@ -33,6 +33,7 @@ from .optimize.es import EvolutionStrategy
 from .optimize.greedy import Greedy
 from .optimize.lp import bound_only
 from .optimize.parallel import WorkerPool
+from .optimize.parts import PartBuilder
 from .optimize.planner import LPPlanner
 from .problem import Problem
 from .result import Provenance, Result, finish_layout
@@ -54,7 +55,9 @@ class Run:
     mast. Both join the search space. resume: records of sensors
     fixed by an earlier run with the same inputs (as given to ``on_fixed``); the run
     goes on after the last of them. workers: processes that score each ES population
-    (same answer).
+    (same answer). part_builder: where the lp optimizer builds the candidates of a
+    ground it plans in parts (None: in this process; ``headless/ray_engine.py``: on
+    Ray; same answer).
     """
 
     def __init__(
@@ -68,6 +71,7 @@ class Run:
         workers: int = 1,
         existing: Sequence[SensorSpec] = (),
         existing_masts: Sequence[tuple[float, float]] = (),
+        part_builder: PartBuilder | None = None,
     ) -> None:
         self.t0 = time.perf_counter()
         world = [(s.x, s.y) for s in existing] + list(existing_masts)
@@ -82,6 +86,7 @@ class Run:
             self._stand(k, spec)
         for record in resume:
             self._replay(record)
+        self.part_builder = part_builder
         self.optimizer = self._optimizer(make_caster, workers)
         self._result: Result | None = None
 
@@ -89,7 +94,7 @@ class Run:
         if self.settings.optimizer == "greedy":
             return Greedy()
         if self.settings.optimizer == "lp":
-            return LPPlanner()
+            return LPPlanner(self.part_builder)
         pool = None
         if workers > 1:
             pool = WorkerPool(self.problem.worker_inputs(), make_caster, workers)

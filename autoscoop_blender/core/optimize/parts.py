@@ -38,7 +38,7 @@ import time
 from collections.abc import Generator, Iterator
 from contextlib import contextmanager
 from dataclasses import replace
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -247,15 +247,50 @@ def prune(problem: Problem, solution: Solution, first: int) -> int:
     return len(dropped)
 
 
+class PartBuilder(Protocol):
+    """Builds the parts' candidate sets (``candidates.build_part``), in this process or
+    elsewhere (``headless/ray_engine.py``). The planner calls ``start`` once with every
+    part, then ``build(k)`` for the parts it plans, in order, then ``close``. Every
+    builder gives the same candidates, so the plan does not depend on the builder."""
+
+    def start(self, problem: Problem, parts: list[I64], reach_m: float) -> None:
+        """The parts (target ordinals, sorted) to come; a builder may begin on them."""
+        ...
+
+    def build(self, k: int) -> Generator[int, None, PartCandidates]:
+        """Part k's candidates; yields while they are being built."""
+        ...
+
+    def close(self) -> None:
+        """Release what the builder holds; safe to call twice."""
+        ...
+
+
+class LocalBuilder:
+    """Each part's candidates built here, when the planner asks for it: one part's
+    matrix held at a time."""
+
+    def start(self, problem: Problem, parts: list[I64], reach_m: float) -> None:
+        self.problem, self.parts, self.reach_m = problem, parts, reach_m
+
+    def build(self, k: int) -> Generator[int, None, PartCandidates]:
+        return build_part(self.problem, self.parts[k], self.reach_m)
+
+    def close(self) -> None:
+        pass
+
+
 def solve_in_parts(
     problem: Problem,
     solution: Solution,
     n_parts: int,
     deadline: float | None,
     stop: threading.Event,
+    builder: PartBuilder | None = None,
 ) -> Generator[Progress, None, Solution]:
     """Plan the problem part by part (see the module docstring); fixes the sensors of
-    each part as it is solved, sets the solution's bound and stop reason."""
+    each part as it is solved, sets the solution's bound and stop reason. builder:
+    builds the parts' candidates (default ``LocalBuilder``)."""
     rho, s = problem.rho, problem.settings
     t0 = time.perf_counter()
     xy = problem.grid.target_xy
@@ -315,71 +350,74 @@ def solve_in_parts(
         finally:
             gen.close()
 
-    for k in range(n_parts):
-        # Each part covers rho of its own points (what covers them already counts),
-        # and what the parts before fell short of: the goal is met part by part, and
-        # a resumed run skips the parts it finished.
-        points = np.flatnonzero(part_of == k)
-        have = int(np.count_nonzero(solution.covered[points]))
-        target = max(0, math.ceil(rho * len(points)) - have) + carry
-        if target <= 0:
-            continue
-        if late():
-            stopped = True
-            break
-        part: PartCandidates = yield from busy(
-            build_part(problem, points, reach_m), k, "candidates"
-        )
-        cands = part.cands
-        taken = taken_candidates(cands, solution)
-        # The part as the bound sees it (nothing fixed but what the run started
-        # with) and as its plan does (what the parts before cover is covered).
-        full, _ = split_instance(
-            cands, points, start_covered, start_counts, solution.need, xy,
-            s.max_sensors_per_mast, taken,
-        )  # fmt: skip
-        reach[k] = coverable(full)
-        # Its LP is solved at its share of the whole goal (its line holds at any).
-        full = replace(full, goal=min(reach[k], math.ceil(goal * open_points[k] / total_open)))
-        left, _ = split_instance(
-            cands, points, solution.covered, solution.counts, solution.need, xy,
-            s.max_sensors_per_mast, taken,
-        )  # fmt: skip
-        left = replace(left, goal=min(coverable(left), target))
-        if left.goal > 0 and full.goal > 0:
-            # The rest of the time, shared by the parts left by their points.
-            share = open_points[k] / max(sum(open_points[k:]), 1)
-            part_deadline = None
-            if deadline is not None:
-                part_deadline = time.perf_counter() + (deadline - time.perf_counter()) * share
-            unit = costs[cands.model] if mixed else 1.0
-            used = _mast_sites(problem, solution.sensors[first:])
-            with _standing_too(problem, used):  # a mast of a part before costs nothing more
-                solve = prove_and_plan(
-                    problem, cands, left, solution, part_deadline, stop, unit * part.share, full
-                )
-                while True:
-                    try:
-                        p = next(solve)
-                    except StopIteration as done:
-                        chosen, _, lp = done.value
+    builder = builder or LocalBuilder()
+    builder.start(problem, [np.flatnonzero(part_of == k) for k in range(n_parts)], reach_m)
+    try:
+        for k in range(n_parts):
+            # Each part covers rho of its own points (what covers them already counts),
+            # and what the parts before fell short of: the goal is met part by part, and
+            # a resumed run skips the parts it finished.
+            points = np.flatnonzero(part_of == k)
+            have = int(np.count_nonzero(solution.covered[points]))
+            target = max(0, math.ceil(rho * len(points)) - have) + carry
+            if target <= 0:
+                continue
+            if late():
+                stopped = True
+                break
+            part: PartCandidates = yield from busy(builder.build(k), k, "candidates")
+            cands = part.cands
+            taken = taken_candidates(cands, solution)
+            # The part as the bound sees it (nothing fixed but what the run started
+            # with) and as its plan does (what the parts before cover is covered).
+            full, _ = split_instance(
+                cands, points, start_covered, start_counts, solution.need, xy,
+                s.max_sensors_per_mast, taken,
+            )  # fmt: skip
+            reach[k] = coverable(full)
+            # Its LP is solved at its share of the whole goal (its line holds at any).
+            full = replace(full, goal=min(reach[k], math.ceil(goal * open_points[k] / total_open)))
+            left, _ = split_instance(
+                cands, points, solution.covered, solution.counts, solution.need, xy,
+                s.max_sensors_per_mast, taken,
+            )  # fmt: skip
+            left = replace(left, goal=min(coverable(left), target))
+            if left.goal > 0 and full.goal > 0:
+                # The rest of the time, shared by the parts left by their points.
+                share = open_points[k] / max(sum(open_points[k:]), 1)
+                part_deadline = None
+                if deadline is not None:
+                    part_deadline = time.perf_counter() + (deadline - time.perf_counter()) * share
+                unit = costs[cands.model] if mixed else 1.0
+                used = _mast_sites(problem, solution.sensors[first:])
+                with _standing_too(problem, used):  # a mast of a part before costs nothing more
+                    solve = prove_and_plan(
+                        problem, cands, left, solution, part_deadline, stop, unit * part.share, full
+                    )
+                    while True:
+                        try:
+                            p = next(solve)
+                        except StopIteration as done:
+                            chosen, _, lp = done.value
+                            break
+                        yield where(p, k, "solve")
+                sensor_lines[k] = (lp.slope, lp.intercept)
+                rounds += lp.rounds
+                masts_lp = site_line(full, part, problem.space.standing, part_deadline, stop)
+                line, site_rounds = yield from busy(masts_lp, k, "bounds")
+                mast_lines[k] = line
+                rounds += site_rounds
+                for c in in_gain_order(left, chosen):
+                    if len(solution.sensors) >= problem.max_sensors:
                         break
-                    yield where(p, k, "solve")
-            sensor_lines[k] = (lp.slope, lp.intercept)
-            rounds += lp.rounds
-            masts_lp = site_line(full, part, problem.space.standing, part_deadline, stop)
-            line, site_rounds = yield from busy(masts_lp, k, "bounds")
-            mast_lines[k] = line
-            rounds += site_rounds
-            for c in in_gain_order(left, chosen):
-                if len(solution.sensors) >= problem.max_sensors:
-                    break
-                sensor = fix_candidate(problem, solution, cands, c)
-                yield where(solution.progress("fixed", rho, fixed=sensor), k, "fixing")
-        got = int(np.count_nonzero(solution.covered[points])) - have
-        carry = max(0, target - got)
-        del part, cands, full, left  # the part's matrix goes before the next part's is built
-        yield where(solution.progress("search", rho), k, "part done", finished=True)
+                    sensor = fix_candidate(problem, solution, cands, c)
+                    yield where(solution.progress("fixed", rho, fixed=sensor), k, "fixing")
+            got = int(np.count_nonzero(solution.covered[points])) - have
+            carry = max(0, target - got)
+            del part, cands, full, left  # the part's matrix goes before the next part's is built
+            yield where(solution.progress("search", rho), k, "part done", finished=True)
+    finally:
+        builder.close()
     dropped = prune(problem, solution, first)
     solution.bound = bound_now()
     if problem.reached(solution.n_covered):

@@ -11,7 +11,7 @@ from ..problem import Problem
 from ..settings import OptimizeSettings
 from .base import Progress, Solution
 from .lp import solve_whole
-from .parts import part_count, solve_in_parts
+from .parts import PartBuilder, part_count, solve_in_parts
 
 # The default time budget, per part of the ground (``budget.part_count``): two_routes
 # plans in 84-88 s, well within it; with k = 2 it ends within 5 minutes.
@@ -41,8 +41,11 @@ class LPPlanner:
 
     name = "lp"
 
-    def __init__(self) -> None:
+    def __init__(self, builder: PartBuilder | None = None) -> None:
+        """builder: where a ground planned in parts has its candidates built (None:
+        here, ``parts.LocalBuilder``)."""
         self.stop = threading.Event()
+        self.builder = builder
 
     def close(self) -> None:
         pass
@@ -55,5 +58,9 @@ class LPPlanner:
         n_parts = part_count(problem)
         deadline = search_deadline(problem.t0, time_limit(problem.settings, n_parts))
         if n_parts > 1:
-            return (yield from solve_in_parts(problem, solution, n_parts, deadline, self.stop))
+            return (
+                yield from solve_in_parts(
+                    problem, solution, n_parts, deadline, self.stop, self.builder
+                )
+            )
         return (yield from solve_whole(problem, solution, deadline, self.stop))
