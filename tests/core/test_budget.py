@@ -236,3 +236,31 @@ def test_a_camera_with_a_resolution_keeps_8_more_bytes_a_cached_row():
     b = run_estimate(hand_scene(), plain, settings)
     assert a.cache_rows == b.cache_rows > 0
     assert a.stage_bytes("cache") - b.stage_bytes("cache") == 8 * a.cache_rows
+
+
+def test_lp_in_parts_holds_one_parts_matrix(monkeypatch):
+    """The lp optimizer plans 840 points in parts of at most 300 (3 parts), or of at
+    most a third of the nonzeros: its candidate and optimizer stages hold the largest
+    part's matrix (a third, with ``PART_IMBALANCE`` room), not the whole's; greedy
+    holds the whole matrix still."""
+    scene = flat_scene(target=(0, 0, 60, 14), sensor=(0, 16, 60, 18))
+    lp = OptimizeSettings(optimizer="lp")
+    whole = run_estimate(scene, PAPER_CAMERA, lp)
+    monkeypatch.setattr(budget, "PART_POINTS", 300)
+    parts = run_estimate(scene, PAPER_CAMERA, lp)
+    assert whole.parts == 1 and parts.parts == math.ceil(840 / 300) == 3
+    assert parts.nonzeros == whole.nonzeros  # the whole ground's, as the split needs
+    held = int(whole.nonzeros / 3 * budget.PART_IMBALANCE)
+    per = budget.NONZERO_OPTIMIZER_BYTES["lp"]
+    assert whole.stage_bytes("optimizer") - parts.stage_bytes("optimizer") == (
+        (whole.nonzeros - held) * per
+    )
+    assert parts.stage_bytes("optimizer") < whole.stage_bytes("optimizer")
+    greedy = run_estimate(scene, PAPER_CAMERA, replace(lp, optimizer="greedy"))
+    assert greedy.parts == 1
+    monkeypatch.setattr(budget, "PART_POINTS", 10_000)
+    monkeypatch.setattr(budget, "PART_NONZEROS", math.ceil(whole.nonzeros / 4))
+    assert run_estimate(scene, PAPER_CAMERA, lp).parts == 4
+    # The problem is split as estimated: the estimate's memory is the run's.
+    problem = Problem(scene, BoxCaster(ground_z=0.0), PAPER_CAMERA, lp)
+    assert problem.estimate.parts == 4
