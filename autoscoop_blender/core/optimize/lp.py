@@ -31,6 +31,7 @@ import math
 import threading
 import time
 from collections.abc import Generator, Iterator
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -94,6 +95,18 @@ PART_REL_GAP = 0.02
 # Once stopped (Esc, Ctrl-C), plans are rounded from the LP for at most this long, s:
 # an interrupted run ends within 5 s (two_routes rounds its 5 plans in about 1 s).
 STOPPED_PLANS_S = 1.5
+
+
+@dataclass(frozen=True)
+class PartInputs:
+    """How a part of a ground planned in parts is solved (``parts.py``): its LP at
+    ``lp_cost`` (C,) (its shares) on ``lp_inst`` (the part with nothing fixed: it bounds
+    the part, while its plans cover what the parts before left), and instead of the
+    fewest masts' MILP, ``sites``: the sites of its masts LP to plan on."""
+
+    lp_cost: F64
+    lp_inst: CoverInstance
+    sites: SiteSolution
 
 
 def instance(
@@ -239,6 +252,7 @@ def masts_then_plan(
     stop: threading.Event | None,
     plan: bool,
     milp: bool = True,
+    known: SiteSolution | None = None,
 ) -> Generator[Any, None, tuple[SiteSolution, list[int] | None]]:
     """The fewest masts and, when ``plan``, a plan on a few positions: on the sites
     of the fewest masts' MILP and on those of its LP relaxation (more sites, each
@@ -246,10 +260,12 @@ def masts_then_plan(
     extra), improved, then with masts closed while that is cheaper; the cheaper of
     the two, and then the mast-aware MILP over its masts (``milp_candidates``). None
     when there is no plan. ``milp``: solve the fewest masts' MILP (else its LP
-    only)."""
-    sites = yield from site_cover(
-        inst, cands.position, len(cands.positions), deadline, stop, milp, _standing(problem)
-    )
+    only); ``known``: the sites found already (a part's, ``PartInputs``): neither."""
+    sites = known
+    if sites is None:
+        sites = yield from site_cover(
+            inst, cands.position, len(cands.positions), deadline, stop, milp, _standing(problem)
+        )
     if not plan or (stop is not None and stop.is_set()):
         return sites, None
     site_of = cands.position
@@ -305,8 +321,7 @@ def prove_bound(
     deadline: float | None,
     stop: threading.Event | None = None,
     plan: bool = False,
-    lp_cost: F64 | None = None,
-    lp_inst: CoverInstance | None = None,
+    part: PartInputs | None = None,
 ) -> Generator[Progress, None, tuple[PlanBound, LPSolution, list[int] | None, list[Cover]]]:
     """The lower bounds: the LP by column generation from a greedy plan's columns and,
     beside it, the fewest masts (then, when ``plan``, the best plan on them). Returns
@@ -314,10 +329,7 @@ def prove_bound(
     whose columns start the LP, and per cost with a new mast's cost: fewer masts).
     Progress reports the best greedy plan's objective and, as it rises, what the LP
     proves of the objective (sensor_cost x its bound for cost; nothing yet for masts).
-    lp_cost: (C,) the LP's cost per candidate instead of one per sensor (or its
-    model's cost); lp_inst: the instance the LP is solved on, when not ``inst``: a
-    part's LP bounds the part with nothing fixed, while its plans cover what the
-    parts before left (``parts.py``)."""
+    part: how a part of the ground is solved (``PartInputs``)."""
     s = problem.settings
     price = sensor_price(problem, cands) if s.objective == "cost" else 1.0
     every = np.arange(len(cands), dtype=np.int64)
@@ -330,24 +342,24 @@ def prove_bound(
     # The LP counts sensors (unit costs), or with models of different costs, prices
     # each candidate at its model's cost; the progress shows the cost it proves.
     ones = np.ones(len(cands)) if np.ndim(price) == 0 else np.asarray(price)
-    if lp_cost is not None:
-        ones = lp_cost
+    if part is not None:
+        ones = part.lp_cost
     unit = float(price) if np.ndim(price) == 0 else 1.0
     per_sensor = {"cost": unit, "sensors": 1.0}.get(s.objective)
     n_parts = 1 if inst.xy is None else math.ceil(inst.n_points / PART_POINTS)
     initial = np.array(greedy.chosen, dtype=np.int64)
-    if lp_inst is not None:
-        start = complete(Cover(lp_inst), every, sensor_cost=price).chosen
+    if part is not None:
+        start = complete(Cover(part.lp_inst), every, sensor_cost=price).chosen
         # A part's LP gives its bound as a line in its goal: solved near its end,
         # as ``split_cover_lp`` solves its parts.
         lp_gen = cover_lp(
-            lp_inst, ones, cands.position, np.array(start, dtype=np.int64), integral=False,
+            part.lp_inst, ones, cands.position, np.array(start, dtype=np.int64), integral=False,
             deadline=deadline, stop=stop, rel_gap=PART_REL_GAP,
         )  # fmt: skip
     elif inst.xy is not None and n_parts > 1:
-        part = parts_of(inst.xy, n_parts)
+        split = parts_of(inst.xy, n_parts)
         lp_gen = split_cover_lp(
-            inst, ones, cands.position, initial, part, deadline=deadline, stop=stop
+            inst, ones, cands.position, initial, split, deadline=deadline, stop=stop
         )
     else:
         lp_gen = cover_lp(inst, ones, cands.position, initial, deadline=deadline, stop=stop)
@@ -356,7 +368,9 @@ def prove_bound(
     # unless the masts are the objective.
     milp = n_parts == 1 or s.objective == "masts"
     so_far = None
-    both = _both(lp_gen, masts_then_plan(problem, cands, inst, deadline, stop, plan, milp))
+    known = None if part is None else part.sites
+    masts = masts_then_plan(problem, cands, inst, deadline, stop, plan, milp, known)
+    both = _both(lp_gen, masts)
     while True:
         try:
             step = next(both)
@@ -376,12 +390,11 @@ def prove_and_plan(
     solution: Solution,
     deadline: float | None,
     stop: threading.Event | None = None,
-    lp_cost: F64 | None = None,
-    lp_inst: CoverInstance | None = None,
+    part: PartInputs | None = None,
 ) -> Generator[Progress, None, tuple[list[int], PlanBound, LPSolution]]:
     """The bounds, the best plan of candidates (see the module docstring) and the LP;
     ``stop`` ends the search early: the bounds so far, and plans rounded from the LP
-    so far for at most ``STOPPED_PLANS_S`` (at least one). lp_cost, lp_inst: as for
+    so far for at most ``STOPPED_PLANS_S`` (at least one). part: as for
     ``prove_bound``."""
     s = problem.settings
 
@@ -389,7 +402,7 @@ def prove_and_plan(
         return plan_value(problem, cands, plan)
 
     bound, lp, on_sites, greedies = yield from prove_bound(
-        problem, cands, inst, solution, deadline, stop, True, lp_cost, lp_inst
+        problem, cands, inst, solution, deadline, stop, True, part
     )
     lower = bound.objective(s.objective, s.mast_cost, s.sensor_cost)
     plans = [g.chosen for g in greedies if g.slack >= 0] + ([on_sites] if on_sites else [])

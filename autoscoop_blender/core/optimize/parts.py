@@ -56,9 +56,9 @@ from .base import (
     newly_covered,
     taken_candidates,
 )
-from .bound import combined_bound, cover_lp, parts_of
-from .cover import CoverInstance
-from .lp import in_gain_order, prove_and_plan
+from .bound import SiteSolution, combined_bound, cover_lp, parts_of
+from .cover import Cover, CoverInstance, complete
+from .lp import PART_REL_GAP, PartInputs, in_gain_order, prove_and_plan
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
@@ -111,11 +111,13 @@ def site_line(
     standing: NDArray[np.bool_],
     deadline: float | None,
     stop: threading.Event | None,
-) -> Generator[None, None, tuple[Line, int]]:
+) -> Generator[None, None, tuple[Line, int, I64]]:
     """The part's fewest-masts LP as a line in its goal (see the module docstring):
     sites as columns at their share of one mast (0 where a mast stands), each
-    covering what its candidates cover (k > 1: at most min(their count, k) a point).
-    Returns the line and the LP's rounds."""
+    covering what its candidates cover (k > 1: at most min(their count, k) a point),
+    solved by column generation from a greedy cover of sites (every site at once took
+    HiGHS over 200 s on a part of Town04). Returns the line, the LP's rounds and the
+    sites (positions) the LP uses: where the part's plans look for masts."""
     cands = part.cands
     col = np.searchsorted(part.sites, cands.position)
     pick = sparse.csr_matrix(
@@ -127,10 +129,15 @@ def site_line(
     cost = np.where(standing[part.sites], 0.0, part.site_share)
     every = np.arange(len(part.sites), dtype=np.int64)
     site_inst = CoverInstance(sites, inst.goal, need=inst.k)
+    start = complete(Cover(site_inst), every, sensor_cost=np.maximum(cost, 1e-6)).chosen
     lp = yield from _quiet(
-        cover_lp(site_inst, cost, every, every, integral=False, deadline=deadline, stop=stop)
-    )
-    return (lp.slope, lp.intercept), lp.rounds
+        cover_lp(
+            site_inst, cost, every, np.array(start, dtype=np.int64), integral=False,
+            deadline=deadline, stop=stop, rel_gap=PART_REL_GAP,
+        )
+    )  # fmt: skip
+    used = part.sites[lp.columns[lp.x > 1e-6]] if np.isfinite(lp.value) else part.sites[start]
+    return (lp.slope, lp.intercept), lp.rounds, np.sort(used).astype(np.int64)
 
 
 def _mast_sites(problem: Problem, sensors: list[FixedSensor]) -> I64:
@@ -388,12 +395,18 @@ def solve_in_parts(
                 part_deadline = None
                 if deadline is not None:
                     part_deadline = time.perf_counter() + (deadline - time.perf_counter()) * share
-                unit = costs[cands.model] if mixed else 1.0
+                masts_lp = site_line(full, part, problem.space.standing, part_deadline, stop)
+                line, site_rounds, lp_sites = yield from busy(masts_lp, k, "bounds")
+                mast_lines[k] = line
+                rounds += site_rounds
+                # Its plans look for masts where its masts LP puts them and where the
+                # parts before stood theirs, which cost it nothing more.
                 used = _mast_sites(problem, solution.sensors[first:])
-                with _standing_too(problem, used):  # a mast of a part before costs nothing more
-                    solve = prove_and_plan(
-                        problem, cands, left, solution, part_deadline, stop, unit * part.share, full
-                    )
+                mine = np.union1d(lp_sites, np.intersect1d(used, part.sites))
+                unit = costs[cands.model] if mixed else 1.0
+                how = PartInputs(unit * part.share, full, SiteSolution(0, mine[:0], mine))
+                with _standing_too(problem, used):
+                    solve = prove_and_plan(problem, cands, left, solution, part_deadline, stop, how)
                     while True:
                         try:
                             p = next(solve)
@@ -403,10 +416,6 @@ def solve_in_parts(
                         yield where(p, k, "solve")
                 sensor_lines[k] = (lp.slope, lp.intercept)
                 rounds += lp.rounds
-                masts_lp = site_line(full, part, problem.space.standing, part_deadline, stop)
-                line, site_rounds = yield from busy(masts_lp, k, "bounds")
-                mast_lines[k] = line
-                rounds += site_rounds
                 for c in in_gain_order(left, chosen):
                     if len(solution.sensors) >= problem.max_sensors:
                         break
