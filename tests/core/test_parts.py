@@ -19,7 +19,7 @@ from autoscoop_blender.core.geom.grid import GroundGrid
 from autoscoop_blender.core.model.scene import Area, SceneModel
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA, SensorPose
 from autoscoop_blender.core.optimize import parts as parts_module
-from autoscoop_blender.core.optimize.base import FixedSensor, Solution, newly_covered
+from autoscoop_blender.core.optimize.base import FixedSensor, Solution, StopReason, newly_covered
 from autoscoop_blender.core.optimize.bound import parts_of
 from autoscoop_blender.core.problem import Problem
 from autoscoop_blender.core.run import Run
@@ -181,3 +181,25 @@ def test_prune_drops_what_the_seams_made_redundant():
     assert parts_module.prune(problem, solution, 3) == 0 and len(solution.sensors) == 3
     assert parts_module.prune(problem, solution, 2) == 1 and len(solution.sensors) == 2
     assert parts_module.prune(problem, solution, 0) == 0
+
+
+@pytest.mark.parametrize("whole", [True, False])
+def test_a_stop_while_candidates_are_built_drops_the_build(whole, monkeypatch):
+    """Stopped while candidates are being built (the whole ground's, or the second
+    part's): the build is dropped at once; whole, no plan was made; in parts, the
+    first part's plan is kept."""
+    if not whole:
+        monkeypatch.setattr(budget, "PART_POINTS", PART_POINTS)
+    run = Run(road(), box_caster(WALL), PAPER_CAMERA, settings(rho=0.9))
+    seen = []
+    for progress in run.steps():
+        if progress.stage == "candidates" and progress.part in (0, 2):
+            seen.append(progress)
+            run.stop_early()
+    res = run.result()
+    assert len(seen) == 1  # no more of the build once stopped
+    if whole:
+        assert res.stop_reason == StopReason.stopped_before_plan() and not res.sensors
+    else:
+        assert "Stopped early" in res.stop_reason and res.sensors
+        assert 0 < res.metrics["coverage_fraction"] < 0.5

@@ -11,6 +11,7 @@ run needs, which it leaves in ``Solution.state`` at every fixed sensor.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Generator
 from dataclasses import dataclass, field
 from typing import Any, Protocol
@@ -126,6 +127,10 @@ class StopReason:
     def reached(rho: float, early: bool = False) -> str:
         text = f"Reached the goal: {rho:.0%} of the target is covered."
         return text + (" Stopped early, with the best plan found by then." if early else "")
+
+    @staticmethod
+    def stopped_before_plan() -> str:
+        return "Stopped early, before the candidates were built: no plan was made."
 
     @staticmethod
     def sensor_limit(max_sensors: int) -> str:
@@ -260,14 +265,29 @@ def fix_candidate(problem: Problem, solution: Solution, cands: CandidateSet, c: 
 
 def candidates_of(problem: Problem, solution: Solution) -> Generator[Progress, None, CandidateSet]:
     """The problem's candidate set, reporting progress while it is built."""
+    cands = yield from candidates_until(problem, solution, None)
+    assert cands is not None  # nothing stops it
+    return cands
+
+
+def candidates_until(
+    problem: Problem, solution: Solution, stop: threading.Event | None
+) -> Generator[Progress, None, CandidateSet | None]:
+    """The problem's candidate set, reporting progress while it is built; None when
+    ``stop`` is set before it is (the build is dropped: no plan can come of it)."""
     build = build_candidates(problem)
-    while True:
-        try:
-            next(build)
-        except StopIteration as done:
-            cands: CandidateSet = done.value
-            return cands
-        yield solution.progress("search", problem.rho, stage="candidates")
+    try:
+        while True:
+            if stop is not None and stop.is_set():
+                return None
+            try:
+                next(build)
+            except StopIteration as done:
+                cands: CandidateSet = done.value
+                return cands
+            yield solution.progress("search", problem.rho, stage="candidates")
+    finally:
+        build.close()
 
 
 def taken_candidates(cands: CandidateSet, solution: Solution) -> NDArray[np.int64]:

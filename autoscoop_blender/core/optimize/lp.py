@@ -46,6 +46,7 @@ from .base import (
     Solution,
     StopReason,
     candidates_of,
+    candidates_until,
     fix_candidate,
     taken_candidates,
 )
@@ -527,7 +528,10 @@ def solve_whole(
 ) -> Generator[Progress, None, Solution]:
     """The lp optimizer on the whole ground at once (see the module docstring): the
     candidate set, the bounds and the best plan, whose sensors it then fixes."""
-    cands = yield from candidates_of(problem, solution)
+    cands = yield from candidates_until(problem, solution, stop)
+    if cands is None:
+        solution.stop_reason = StopReason.stopped_before_plan()
+        return solution
     inst = instance(
         cands, problem, solution.covered, solution.counts, taken_candidates(cands, solution)
     )

@@ -142,10 +142,8 @@ def site_line(
 
 def _mast_sites(problem: Problem, sensors: list[FixedSensor]) -> I64:
     """The positions (indices into the problem's) of the sensors' masts."""
-    space = problem.space
-    return np.array(
-        sorted({space.index_of(f.pose.x, f.pose.y) for f in sensors} - {None}), dtype=np.int64
-    )
+    found = (problem.space.index_of(f.pose.x, f.pose.y) for f in sensors)
+    return np.unique([k for k in found if k is not None]).astype(np.int64)
 
 
 @contextmanager
@@ -345,10 +343,15 @@ def solve_in_parts(
             eta_s=eta,
         )
 
-    def busy(gen: Generator[Any, None, Any], k: int, stage: str) -> Generator[Progress, None, Any]:
-        """``gen``'s value, reporting progress in part k while it works."""
+    def busy(
+        gen: Generator[Any, None, Any], k: int, stage: str, stop: threading.Event | None = None
+    ) -> Generator[Progress, None, Any]:
+        """``gen``'s value, reporting progress in part k while it works; None when
+        ``stop`` is set first (``gen`` is dropped)."""
         try:
             while True:
+                if stop is not None and stop.is_set():
+                    return None
                 try:
                     next(gen)
                 except StopIteration as done:
@@ -372,7 +375,10 @@ def solve_in_parts(
             if late():
                 stopped = True
                 break
-            part: PartCandidates = yield from busy(builder.build(k), k, "candidates")
+            part = yield from busy(builder.build(k), k, "candidates", stop)
+            if part is None:  # stopped while it was built
+                stopped = True
+                break
             cands = part.cands
             taken = taken_candidates(cands, solution)
             # The part as the bound sees it (nothing fixed but what the run started
