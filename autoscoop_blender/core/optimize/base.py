@@ -278,13 +278,13 @@ def candidates_until(
     build = build_candidates(problem)
     try:
         while True:
-            if stop is not None and stop.is_set():
-                return None
             try:
                 next(build)
             except StopIteration as done:
                 cands: CandidateSet = done.value
                 return cands
+            if stop is not None and stop.is_set():
+                return None
             yield solution.progress("search", problem.rho, stage="candidates")
     finally:
         build.close()
