@@ -232,6 +232,7 @@ def cover_lp(
     deadline: float | None = None,
     stop: threading.Event | None = None,
     rel_gap: float = 0.0,
+    interior: bool = False,
 ) -> Generator[LPProgress | None, None, LPSolution]:
     """The LP relaxation by column generation (see the module docstring).
 
@@ -246,7 +247,13 @@ def cover_lp(
     matrix, n = inst.matrix, inst.n_points
     need = inst.k
     multi = inst.multi
-    h = _new_highs(None)
+    h = _new_highs(None if deadline is None else deadline - time.perf_counter())
+    if interior:
+        # An interior point method without crossover: on the dense columns of mast
+        # sites, one solve of every column took 57 s where the simplex had not
+        # finished in 60 s (a part of Town04: 1,422 sites, 13,586 points).
+        h.setOptionValue("solver", "ipm")
+        h.setOptionValue("run_crossover", "off")
     _cover_rows(h, n, inst.goal, need if multi else None)
     # The artificial demand slack, so the restricted LP is always feasible: priced as
     # the dearest candidate per point (with k > 1, k_max of them), never cheaper.
@@ -289,7 +296,12 @@ def cover_lp(
         if not (yield from _run(h, stop)):
             return last  # stopped in the middle of a solve: its values are not optimal
         sol = h.getSolution()
-        value = float(h.getInfo().objective_function_value)
+        # Cut short by the time limit: the duals so far still give a Lagrangian bound
+        # (if there are any), but the objective is no optimum to scale.
+        optimal = h.getModelStatus() == highspy.HighsModelStatus.kOptimal
+        if not optimal and len(sol.row_dual) != n + 1:
+            return last
+        value = float(h.getInfo().objective_function_value) if optimal else math.inf
         row_dual = np.maximum(np.asarray(sol.row_dual), 0.0)  # >= 0 up to round-off
         duals, sigma = row_dual[:n], float(row_dual[n])
         priced = np.asarray(matrix @ duals.astype(matrix.dtype), dtype=float)
@@ -309,25 +321,25 @@ def cover_lp(
         # With k > 1 (x_c <= 1) the restricted LP's value holds the bounds' duals too:
         # not a bound scaled, and ``mast_aware_bound`` takes the point duals' ``total``.
         dual = total if multi else math.nan
-        if not multi:
+        if not multi and optimal:
             best = max(best, scale * value * (1 - SAFETY) - SAFETY)
         yield LPProgress(rounds, value, best, len(order))
         # Columns in the LP priced below 0 only by round-off (duals clipped at 0) are
         # not new: the LP is complete when no other candidate is.
         negative = np.flatnonzero((reduced < -1e-9) & ~in_lp)
         complete = len(negative) == 0
-        done_int = integral and math.ceil(best - 1e-6) >= math.ceil(value - 1e-6)
+        done_int = integral and optimal and math.ceil(best - 1e-6) >= math.ceil(value - 1e-6)
         done_gap = rel_gap > 0 and best >= (1 - rel_gap) * value
         late = deadline is not None and time.perf_counter() > deadline
         late = late or (stop is not None and stop.is_set())
-        if complete:
+        if complete and optimal:
             best = max(best, value * (1 - SAFETY) - SAFETY)
         x = np.asarray(sol.col_value)[first:]
         last = LPSolution(
             value, best, np.array(order, dtype=np.int64), x, priced, reduced, rounds, complete,
             *line, dual=dual,
         )  # fmt: skip
-        if complete or done_int or done_gap or late:
+        if complete or done_int or done_gap or late or not optimal:
             return last
         # The best candidate of each group, the most negative groups first.
         by_group = negative[np.lexsort((reduced[negative], group[negative]))]

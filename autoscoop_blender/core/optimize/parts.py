@@ -58,11 +58,18 @@ from .base import (
 )
 from .bound import SiteSolution, combined_bound, cover_lp, parts_of
 from .cover import Cover, CoverInstance, complete
-from .lp import PART_REL_GAP, PartInputs, in_gain_order, prove_and_plan
+from .lp import PartInputs, in_gain_order, prove_and_plan
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
 Line = tuple[float, float]
+
+# The masts LP of a part gets at most this long, s: its dense columns are slow to
+# solve (a part of Town04: 57 s with the interior point method; by column generation
+# with the simplex, 288 s).
+SITE_LP_S = 90.0
+# A site is one the LP uses above this value (an interior point's values are never 0).
+SITE_USED = 1e-3
 
 
 def part_count(problem: Problem) -> int:
@@ -115,8 +122,8 @@ def site_line(
     """The part's fewest-masts LP as a line in its goal (see the module docstring):
     sites as columns at their share of one mast (0 where a mast stands), each
     covering what its candidates cover (k > 1: at most min(their count, k) a point),
-    solved by column generation from a greedy cover of sites (every site at once took
-    HiGHS over 200 s on a part of Town04). Returns the line, the LP's rounds and the
+    every site at once, by HiGHS' interior point method, for at most ``SITE_LP_S``
+    (cut short, its duals still bound it). Returns the line, the LP's rounds and the
     sites (positions) the LP uses: where the part's plans look for masts."""
     cands = part.cands
     col = np.searchsorted(part.sites, cands.position)
@@ -129,14 +136,17 @@ def site_line(
     cost = np.where(standing[part.sites], 0.0, part.site_share)
     every = np.arange(len(part.sites), dtype=np.int64)
     site_inst = CoverInstance(sites, inst.goal, need=inst.k)
-    start = complete(Cover(site_inst), every, sensor_cost=np.maximum(cost, 1e-6)).chosen
+    limit = time.perf_counter() + SITE_LP_S
     lp = yield from _quiet(
         cover_lp(
-            site_inst, cost, every, np.array(start, dtype=np.int64), integral=False,
-            deadline=deadline, stop=stop, rel_gap=PART_REL_GAP,
+            site_inst, cost, every, every, integral=False, interior=True, stop=stop,
+            deadline=limit if deadline is None else min(deadline, limit),
         )
     )  # fmt: skip
-    used = part.sites[lp.columns[lp.x > 1e-6]] if np.isfinite(lp.value) else part.sites[start]
+    if len(lp.x) == len(every):
+        used = part.sites[lp.columns[lp.x > SITE_USED]]
+    else:  # no solution: the sites of a greedy cover
+        used = part.sites[complete(Cover(site_inst), every, sensor_cost=cost + 1e-6).chosen]
     return (lp.slope, lp.intercept), lp.rounds, np.sort(used).astype(np.int64)
 
 
