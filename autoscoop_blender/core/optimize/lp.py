@@ -21,8 +21,10 @@ On the problem's candidate set (``core/candidates.py``):
    the one that is best for the objective wins.
 
 Deterministic (no random choice; the seed plays no part; HiGHS' MILP is limited in
-nodes, not seconds). ``time_limit_s`` stops the bounds where they are (still proven)
-and plans from what the LP has so far.
+nodes, not seconds) unless the time limit ends it (``planner.py``: by default 240 s a
+part): then the bounds stop where they are (still proven) and the plans come from
+what the LP has so far. A ground too large for one matrix is planned in parts with
+the same machinery (``parts.py``).
 """
 
 from __future__ import annotations
