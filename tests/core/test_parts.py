@@ -203,3 +203,15 @@ def test_a_stop_while_candidates_are_built_drops_the_build(whole, monkeypatch):
     else:
         assert "Stopped early" in res.stop_reason and res.sensors
         assert 0 < res.metrics["coverage_fraction"] < 0.5
+
+
+def test_past_the_time_limit_every_part_is_still_planned(small_parts):
+    """A limit already spent when the search starts: no LP is solved to its end, yet
+    every part is planned (from its greedy plans) and the goal met, with a bound (of
+    the duals so far, possibly 0) at most the plan's cost."""
+    run = Run(road(), box_caster(WALL), PAPER_CAMERA, settings(rho=0.9, time_limit_s=0.01))
+    res = run.result()
+    assert res.stop_reason.startswith("Reached the goal") and "Stopped early" in res.stop_reason
+    counts = recount(road(), res)
+    assert np.count_nonzero(counts >= 1) >= math.ceil(0.9 * len(counts))
+    assert 0 <= res.metrics["lower_bound"] <= res.metrics["cost"]

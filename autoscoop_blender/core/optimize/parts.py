@@ -382,7 +382,10 @@ def solve_in_parts(
             target = max(0, math.ceil(rho * len(points)) - have) + carry
             if target <= 0:
                 continue
-            if late():
+            # Stopped (Esc, Ctrl-C): the parts done are the plan. Past the time limit,
+            # the parts left are still planned, each from its greedy plans (no LP):
+            # a plan that leaves parts of the ground uncovered is no plan.
+            if stop.is_set():
                 stopped = True
                 break
             part = yield from busy(builder.build(k), k, "candidates", stop)
