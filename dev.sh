@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# AutoSCOOP developer entry: sets up .venv (Python 3.11, bpy 5.0.1, pinned requirements.txt)
-# once, then runs the job asked for.
+# AutoSCOOP developer entry: sets up .venv (Python 3.11, bpy 5.0.1, pinned requirements.txt
+# and the optional Ray extra, requirements-ray.txt) once, then runs the job asked for.
 #   ./dev.sh demo   the main job (optimize the bundled sample scene), results in out/
 #                   (replacing an earlier demo's)
 #   ./dev.sh test   the test suite on bpy 5.0.1 / Python 3.11, then the extension, core and
@@ -24,17 +24,24 @@ cd "$(dirname "$0")"
 
 PY=${PYTHON:-python3.11}
 
-# setup VENV PYTHON REQUIREMENTS: create VENV with PYTHON and install REQUIREMENTS, once
-# per content of the requirement files.
+# The Python 3.11 venv's requirements: the pinned ones and the optional Ray extra (its
+# tests run there; the Python 3.13 venv runs no test that needs it).
+REQS311=(requirements.txt requirements-ray.txt)
+
+# setup VENV PYTHON REQUIREMENTS...: create VENV with PYTHON and install REQUIREMENTS,
+# once per content of the requirement files.
 setup() {
-    local venv=$1 py=$2 req=$3
+    local venv=$1 py=$2
+    shift 2
     local stamp
-    stamp="$venv/.requirements-$(cat "$req" requirements-bundled.txt | sha256sum | cut -c1-16)"
+    stamp="$venv/.requirements-$(cat "$@" requirements-bundled.txt | sha256sum | cut -c1-16)"
     if [ ! -x "$venv/bin/python" ]; then
         "$py" -m venv "$venv"
     fi
     if [ ! -f "$stamp" ]; then
-        "$venv/bin/python" -m pip install --disable-pip-version-check -q -r "$req"
+        local req args=()
+        for req in "$@"; do args+=(-r "$req"); done
+        "$venv/bin/python" -m pip install --disable-pip-version-check -q "${args[@]}"
         rm -f "$venv"/.requirements-*
         touch "$stamp"
     fi
@@ -70,13 +77,13 @@ run_pytest() {
 
 case "${1:-}" in
     demo)
-        setup .venv "$PY" requirements.txt
+        setup .venv "$PY" "${REQS311[@]}"
         shift
         # out/ is the demo's own folder: an earlier demo's results are replaced.
         exec .venv/bin/python -m headless optimize --overwrite "$@"
         ;;
     test)
-        setup .venv "$PY" requirements.txt
+        setup .venv "$PY" "${REQS311[@]}"
         shift
         first=0
         run_pytest .venv "$@" || first=$?
@@ -95,12 +102,12 @@ case "${1:-}" in
         [ "$first" -eq 0 ] && [ "$second" -eq 0 ]
         ;;
     coverage)
-        setup .venv "$PY" requirements.txt
+        setup .venv "$PY" "${REQS311[@]}"
         shift
         run_pytest .venv --cov --cov-branch --cov-report=term "$@"
         ;;
     mutants)
-        setup .venv "$PY" requirements.txt
+        setup .venv "$PY" "${REQS311[@]}"
         shift
         exec .venv/bin/python -m headless.devtools.mutants "$@"
         ;;
