@@ -62,6 +62,7 @@ import threading
 import time
 from collections.abc import Generator
 from dataclasses import dataclass
+from typing import Any, TypeVar
 
 import highspy
 import numpy as np
@@ -410,10 +411,12 @@ def combined_bound(lines: list[tuple[float, float]], coverable: list[int], goal:
     return total
 
 
-def _quiet(
-    gen: Generator[LPProgress | None, None, LPSolution],
-) -> Generator[None, None, LPSolution]:
-    """``gen`` yielding None for its progress: a part's bound is not the whole's."""
+T = TypeVar("T")
+
+
+def quiet(gen: Generator[Any, None, T]) -> Generator[None, None, T]:
+    """``gen``'s value, yielding None for whatever it yields (a part's LP progress is
+    not the whole's)."""
     try:
         while True:
             try:
@@ -476,7 +479,7 @@ def split_cover_lp(
         share = cost[rows] * np.diff(sub.indptr) / sizes[rows]
         goal = min(coverable[k], math.ceil(inst.goal * coverable[k] / total))
         start = np.flatnonzero(np.isin(rows, initial))
-        lp = yield from _quiet(cover_lp(
+        lp = yield from quiet(cover_lp(
             CoverInstance(sub, goal, need=inst.k[points]), share, group[rows], start,
             integral=False,
             deadline=deadline, stop=stop, rel_gap=rel_gap,

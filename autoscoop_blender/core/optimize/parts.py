@@ -56,7 +56,7 @@ from .base import (
     newly_covered,
     taken_candidates,
 )
-from .bound import SiteSolution, combined_bound, cover_lp, parts_of
+from .bound import SiteSolution, combined_bound, cover_lp, parts_of, quiet
 from .cover import Cover, CoverInstance, complete
 from .lp import PartInputs, in_gain_order, prove_and_plan
 
@@ -137,7 +137,7 @@ def site_line(
     every = np.arange(len(part.sites), dtype=np.int64)
     site_inst = CoverInstance(sites, inst.goal, need=inst.k)
     limit = time.perf_counter() + SITE_LP_S
-    lp = yield from _quiet(
+    lp = yield from quiet(
         cover_lp(
             site_inst, cost, every, every, integral=False, interior=True, stop=stop,
             deadline=limit if deadline is None else min(deadline, limit),
@@ -173,19 +173,6 @@ def _standing_too(problem: Problem, sites: I64) -> Iterator[None]:
         yield
     finally:
         problem.space = space
-
-
-def _quiet(gen: Generator[Any, None, Any]) -> Generator[None, None, Any]:
-    """``gen``'s value, yielding None for whatever it yields."""
-    try:
-        while True:
-            try:
-                next(gen)
-            except StopIteration as done:
-                return done.value
-            yield None
-    finally:
-        gen.close()
 
 
 def whole_bound(
