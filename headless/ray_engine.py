@@ -19,9 +19,10 @@ by ``candidates.build_part``: ray casting through the BVHTree, the heavy work. H
 Ray is an optional extra (``requirements-ray.txt``): the add-on neither ships nor
 imports it, and this module imports it only when a builder starts.
 
-Connecting: ``address`` (else ``RAY_ADDRESS``) names a running cluster, which is left
-running at the end; without one a local Ray with ``workers`` CPUs is started and shut
-down at the end. The cluster's nodes need this project's Python packages (bpy 5.0.1
+Connecting: ``address`` (else ``RAY_ADDRESS``) names a running cluster, which runs on
+at the end (this process disconnects); without one a local Ray with ``workers`` CPUs
+is started and shut down at the end. Checked by hand against a cluster of ``ray start
+--head`` on this machine: the same plan, the code shipped, the cluster left running. The cluster's nodes need this project's Python packages (bpy 5.0.1
 and requirements.txt); its own code (``autoscoop_blender``, ``headless``) is sent with
 the job (Ray's ``py_modules``).
 
@@ -207,7 +208,8 @@ class RayBuilder:
         self.make_caster = make_caster
         self.workers = workers
         self.address = address or os.environ.get("RAY_ADDRESS") or None
-        self.started_ray = False  # whether this builder started the Ray it uses
+        self.started_ray = False  # whether this builder started the local Ray it uses
+        self.connected = False  # whether this builder called ray.init (start or connect)
         self.actors: list[Any] = []
         self.pool: Any = None
         self.parts: list[I64] = []
@@ -264,7 +266,7 @@ class RayBuilder:
             kw.update(address=self.address, runtime_env={"py_modules": modules})
         saved = {s: signal.getsignal(s) for s in _SIGNALS}
         # Set first: a local Ray interrupted while it starts is shut down by close().
-        self.started_ray = self.address is None
+        self.started_ray, self.connected = self.address is None, True
         try:
             ray.init(**kw)
         except SystemExit:
@@ -339,9 +341,11 @@ class RayBuilder:
         self.submitted.clear()
 
     def close(self) -> None:
-        """End the actors and shut down a local Ray this builder started; a cluster
-        connected to is left running. Safe to call twice."""
+        """End the actors and shut down a local Ray this builder started; from a
+        cluster it connected to this process disconnects, and the cluster runs on; a
+        Ray someone else started or connected to is left as it is. Safe to call
+        twice."""
         self.end_actors()
-        if self.started_ray:
-            self.started_ray = False
+        if self.connected:
+            self.started_ray = self.connected = False
             importlib.import_module("ray").shutdown()

@@ -141,7 +141,8 @@ def test_ray_builds_the_same_parts_and_the_plan_is_the_same(monkeypatch):
         split = parts_of(problem.grid.target_xy, 4)
         parts = [np.flatnonzero(split == k) for k in range(4)]
         first.start(problem, parts, PAPER_CAMERA.range_m)
-        assert first.started_ray and signal.getsignal(signal.SIGTERM) is mine
+        assert first.started_ray and first.connected
+        assert signal.getsignal(signal.SIGTERM) is mine
         for k in (1, 3):
             same_part(
                 drain(first.build(k)), drain(build_part(problem, parts[k], PAPER_CAMERA.range_m))
@@ -152,7 +153,7 @@ def test_ray_builds_the_same_parts_and_the_plan_is_the_same(monkeypatch):
         ray_cls, remote = recording(ray_engine.RayBuilder)
         second = ray_cls(factory, workers=2)
         there = Run(scene, factory, PAPER_CAMERA, settings(), part_builder=second).result()
-        assert not second.started_ray and not second.actors and ray.is_initialized()
+        assert not second.connected and not second.actors and ray.is_initialized()
         second.close()  # again: nothing happens
     finally:
         first.close()
