@@ -7,17 +7,33 @@ Every operator turns a user mistake (``AutoscoopError``) into ``self.report`` an
 
 from __future__ import annotations
 
+import time
+
 import bpy
 from bpy.props import EnumProperty
 
 from . import names
 from .core.errors import AutoscoopError
+from .core.optimize.base import Progress
+from .io.progress_text import progress_text
 from .scene import pipeline
 
 
 def _fail(op: bpy.types.Operator, error: AutoscoopError) -> set[str]:
     op.report({"ERROR"}, str(error))
     return {"CANCELLED"}
+
+
+def status_text(p: Progress, elapsed_s: float, optimizer: str, stopping: bool) -> str:
+    """The status bar's line while a run works: the same facts in the same words as
+    the command line's progress lines, and what Esc does now."""
+    if stopping:
+        esc = "stopping: Esc again to cancel"
+    elif optimizer == "lp":
+        esc = "Esc to stop with the best plan"
+    else:
+        esc = "Esc to cancel"
+    return f"AutoSCOOP: {progress_text(p, elapsed_s)}  -  {esc}"
 
 
 class AUTOSCOOP_OT_optimize(bpy.types.Operator):
@@ -90,14 +106,9 @@ class AUTOSCOOP_OT_optimize(bpy.types.Operator):
         done = job.step(self._budget_s)
         p = job.progress
         context.window_manager.progress_update(int(1000 * p.fraction))
-        proof = ""
-        if p.bound is not None or p.best is not None:
-            best = "-" if p.best is None else f"{p.best:g}"
-            proof = f", best plan {best}, lower bound {p.bound or 0:.2f}"
-        context.workspace.status_text_set(
-            f"AutoSCOOP: {p.sensors} sensors, coverage {p.coverage:.1%} of "
-            f"{p.rho:.0%}, epoch {p.epoch} ({p.phase}){proof}  -  Esc to cancel"
-        )
+        elapsed = time.perf_counter() - job.run.t0
+        text = status_text(p, elapsed, job.settings.optimizer, job.stopping)
+        context.workspace.status_text_set(text)
         if not done:
             return {"RUNNING_MODAL"}
         self._cleanup(context)

@@ -22,6 +22,12 @@ exit code 130, no traceback, and a last line that says what was kept.
   (printed through ``sys.excepthook`` or ``sys.unraisablehook``). So no traceback of
   a KeyboardInterrupt is printed, and ``check()`` raises the interrupt again where it
   must not be missed: before any output is written, and at every progress report.
+- ``early_stop(stop)``: inside this block the first interrupt does not raise but calls
+  ``stop()``, which asks the work to end soon by itself and keep what it has (the lp
+  optimizer's best plan: ``Run.stop_early``); when ``stop()`` returns False (nothing
+  to keep yet, or an optimizer that cannot stop early) the interrupt raises as usual.
+  ``stopped()`` says whether it was asked. The watchdog then allows ``STOP_GRACE_S``
+  for the run to finish and write, and a second interrupt still ends it at once.
 - ``keep(text)`` or ``keep(callable)``: what an interruption keeps, as the job stands
   (a callable is asked when the line is printed, so it reads the checkpoint then).
   ``last_line()`` prints ``interrupted: <that>`` once, whoever comes first.
@@ -49,6 +55,11 @@ GRACE_S = 3.0
 """Seconds from the first interrupt to the watchdog's exit: the clean-up's budget (the
 issue's promise is 5 s, with the interpreter's own exit after it)."""
 
+STOP_GRACE_S = 4.5
+"""The same from an interrupt in an ``early_stop`` block: the run finishes its pipeline
+(masts, report) and writes its results in this time, or the watchdog ends it (the
+issue's limit is 5 s from the signal to the end)."""
+
 EXIT_INTERRUPTED = 130
 
 # Sent to the watchdog by ``finish`` (no signal has the number 0).
@@ -65,7 +76,9 @@ class _State:
     installed = False
     hold_depth = 0
     pending = False  # a signal arrived inside held()
-    signalled = False  # any signal arrived
+    signalled = False  # a signal arrived that ends the work (not an early stop)
+    stopper: Callable[[], bool] | None = None  # inside ``early_stop``
+    stopped = False  # a signal asked the work to stop early (``early_stop``)
     kept: Callable[[], str] = lambda: "nothing written"  # noqa: E731
     printed = False
     finished: int | None = None  # the exit code, once the command is done
@@ -109,6 +122,12 @@ def signalled() -> bool:
     return _State.signalled
 
 
+def stopped() -> bool:
+    """Whether an interrupt asked the work to stop early and keep what it has
+    (``early_stop``)."""
+    return _State.stopped
+
+
 def check() -> None:
     """KeyboardInterrupt if an interrupt came (and may have been swallowed)."""
     if _State.signalled and not _State.hold_depth:
@@ -132,6 +151,11 @@ def finish(code: int) -> int:
 def _handler(signum: int, frame: object) -> None:
     if _State.finished is not None:
         return
+    if _State.stopper is not None and not (_State.stopped or _State.signalled):
+        # (the stopper only sets a flag: safe to call from here, at any point)
+        if _State.stopper():
+            _State.stopped = True
+            return
     _State.signalled = True
     if _State.hold_depth:
         _State.pending = True
@@ -150,6 +174,17 @@ def held() -> Iterator[None]:
         if _State.hold_depth == 0 and _State.pending:
             _State.pending = False
             raise KeyboardInterrupt
+
+
+@contextmanager
+def early_stop(stop: Callable[[], bool]) -> Iterator[None]:
+    """In this block the first interrupt calls ``stop()`` instead of raising, when that
+    returns True (see the module docstring)."""
+    _State.stopper = stop
+    try:
+        yield
+    finally:
+        _State.stopper = None
 
 
 def keep(what: str | Callable[[], str]) -> None:
@@ -203,14 +238,23 @@ def _midline() -> bool:
     return bool(progress and progress.ProgressBar.drawing)
 
 
+def _grace() -> float:
+    """Seconds the work has from the first interrupt: longer when it was asked to stop
+    early (or may be: the main thread's handler may not have run yet, while C code
+    holds it)."""
+    return STOP_GRACE_S if _State.stopped or _State.stopper is not None else GRACE_S
+
+
 def _watch(read_end: socket.socket) -> None:
     """The watchdog thread (module docstring)."""
     first: float | None = None
     while True:
-        wait = None if first is None else max(first + GRACE_S - time.monotonic(), 0.0)
-        ready, _, _ = select.select([read_end], [], [], wait)
-        if not ready:
+        if first is not None and time.monotonic() >= first + _grace():
             break  # the grace is over
+        # Once counting, wake often: the grace depends on the main thread's state.
+        ready, _, _ = select.select([read_end], [], [], None if first is None else 0.05)
+        if not ready:
+            continue
         data = read_end.recv(64)
         if _FINISHED in data and first is None:
             first = time.monotonic()  # the exit's own deadline

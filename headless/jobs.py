@@ -6,21 +6,25 @@ import argparse
 import os
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from autoscoop_blender.core.budget import Estimate, bytes_text, count_text
 from autoscoop_blender.core.errors import AutoscoopError, InputError
 from autoscoop_blender.core.evaluate import evaluate_layout
 from autoscoop_blender.core.model.scene import SceneModel
 from autoscoop_blender.core.model.sensors import SensorPack
+from autoscoop_blender.core.optimize.base import Progress
 from autoscoop_blender.core.result import Result, area_at
 from autoscoop_blender.core.run import Run
 from autoscoop_blender.core.settings import CoverageSettings, OptimizeSettings, flag_values
 from autoscoop_blender.io.config import load_config
 from autoscoop_blender.io.figure import render_png
+from autoscoop_blender.io.progress_text import number
 from autoscoop_blender.io.reports import (
     POINTS_HEADER,
     coverage_dict,
@@ -30,7 +34,7 @@ from autoscoop_blender.io.reports import (
     sensors_csv,
 )
 from autoscoop_blender.io.sensor_file import Standing, read_existing, read_sensors
-from headless import interrupts
+from headless import interrupts, notes
 from headless.checkpoint import NAME as CHECKPOINT_NAME
 from headless.checkpoint import Checkpoint, checkpoint_header
 from headless.files import (
@@ -42,6 +46,7 @@ from headless.files import (
     quiet_fds,
     write_files,
 )
+from headless.interrupts import STOP_GRACE_S
 from headless.lock import NAME as LOCK_NAME
 from headless.lock import OutDirLock
 from headless.paths import SAMPLES
@@ -51,7 +56,8 @@ from headless.progress import ProgressBar
 def coverage(args: argparse.Namespace) -> int:
     """``coverage``: evaluate a sensors file on a scene, write OUT.json (+ CSV)."""
     settings = CoverageSettings(**flag_values(CoverageSettings, vars(args))).validated()
-    outputs = {Path(args.out): "--out"}
+    notes_path = notes.beside(Path(args.out))
+    outputs = {Path(args.out): "--out", notes_path: "--out's notes"}
     if args.points_csv:
         outputs[Path(args.points_csv)] = "--points-csv"
     inputs = {Path(args.sensors): "the sensors file (--sensors)"}
@@ -62,13 +68,18 @@ def coverage(args: argparse.Namespace) -> int:
     result = evaluate_layout(scene, make_caster(), specs, settings)
     for w in result.warnings:
         print(f"warning: {w}", file=sys.stderr)
-    for e in result.excluded:
-        print(f"note: {e.text()}", file=sys.stderr)
+    for line in notes.exclusion_lines(result.excluded, no_mast_names(scene), notes_path):
+        print(f"note: {line}", file=sys.stderr)
 
     files: dict[Path, str | bytes] = {Path(args.out): json_text(coverage_dict(result))}
     if args.points_csv:
         files[Path(args.points_csv)] = csv_text(POINTS_HEADER, point_rows(result))
+    every_note = notes.exclusion_file(result.excluded)
+    if every_note is not None:
+        files[notes_path] = every_note
     write_files(files)
+    if every_note is None:  # an earlier run's notes are not this one's
+        notes_path.unlink(missing_ok=True)
     m = result.metrics
     print(
         f"coverage {m['coverage_fraction']:.2%} ({m['covered_m2']:.0f} of "
@@ -112,8 +123,8 @@ def optimize(args: argparse.Namespace) -> int:
     scene, make_caster = load_scene(scene_path, reach)
     for w in scene.warnings:
         print(f"warning: {w}", file=sys.stderr)
-    for e in scene.excluded:
-        print(f"note: {e.text()}", file=sys.stderr)
+    for line in notes.exclusion_lines(scene.excluded, no_mast_names(scene), out_dir / notes.NAME):
+        print(f"note: {line}", file=sys.stderr)
     for w in standing_warnings(scene, standing, args.existing):
         print(f"warning: {w}", file=sys.stderr)
     with OutDirLock(out_dir) as lock:
@@ -125,23 +136,43 @@ def optimize(args: argparse.Namespace) -> int:
         header = checkpoint_header(scene, model, settings, existing, existing_masts)
         checkpoint = Checkpoint(out_dir, header)
         resume = checkpoint.resume(repair=args.repair) if args.resume else []
-        interrupts.keep(lambda: checkpoint.kept_text(settings.optimizer))
+
+        def checkpoint_kept() -> str:
+            return checkpoint.kept_text(settings.optimizer)
+
+        interrupts.keep(checkpoint_kept)
         run = Run(
             scene, make_caster, model, settings, resume, on_fixed=checkpoint.append,
             workers=workers, existing=existing, existing_masts=existing_masts,
         )  # fmt: skip
         if resume:
             print(f"resuming after {len(resume)} fixed sensor(s)", file=sys.stderr)
-        bar = ProgressBar()
+        print(f"estimate: {estimate_text(run.problem.estimate)}", file=sys.stderr, flush=True)
+        preload_figure()
+        bar = ProgressBar(t0=run.t0)
+        stop = EarlyStop(run, checkpoint_kept)
         try:
-            for progress in run.steps():
-                bar.update(progress)
+            with interrupts.early_stop(stop):
+                for progress in run.steps():
+                    stop.see(progress)
+                    bar.update(progress)
         finally:  # interrupted too: no worker left, the bar's line ended
             run.close()
             bar.close()
         result = run.result()
-        write_results(result, out_dir, render=args.render)
-        interrupts.keep(f"the results are written in {out_dir}")
+        stopped = interrupts.stopped()
+        if stopped:
+            result = replace(result, interrupted=True)
+        # Stopped, the run has until the watchdog's end (``interrupts.STOP_GRACE_S``):
+        # no render of several seconds then.
+        write_results(result, out_dir, render=args.render and not stopped)
+        if args.render and stopped:  # an earlier run's view would not be this plan's
+            (out_dir / "result_view.png").unlink(missing_ok=True)
+        interrupts.keep(
+            stopped_text(result, out_dir, args.render)
+            if stopped
+            else f"the results are written in {out_dir}"
+        )
     m = result.metrics
     kept = ""
     if existing or existing_masts:
@@ -150,6 +181,9 @@ def optimize(args: argparse.Namespace) -> int:
         f"{m['sensors']} sensors on {m['masts']} masts{kept} cover "
         f"{m['coverage_fraction']:.2%} in {m['wall_s']:.1f} s -> {out_dir}\n{result.stop_reason}"
     )
+    if stopped:
+        interrupts.last_line()
+        return interrupts.EXIT_INTERRUPTED
     if m["coverage_fraction"] < settings.rho:
         print(
             f"short of the goal: {m['coverage_fraction']:.2%} of {settings.rho:.0%} covered "
@@ -158,6 +192,82 @@ def optimize(args: argparse.Namespace) -> int:
         )
         return EXIT_SHORT_OF_GOAL
     return 0
+
+
+class EarlyStop:
+    """The first Ctrl-C or SIGTERM of a run whose optimizer keeps its best plan when
+    stopped early (lp, ``Run.stop_early``): the run is asked to stop, and goes on to
+    write that plan (``interrupts.early_stop``). Before the optimizer has a plan (while
+    its candidates are built) there is nothing to keep, and the interrupt ends the run
+    as with the other optimizers."""
+
+    def __init__(self, run: Run, kept: Callable[[], str]) -> None:
+        self.run = run
+        self.kept = kept  # what the run keeps if the watchdog has to end it
+        self.has_plan = False
+
+    def see(self, p: Progress) -> None:
+        self.has_plan |= p.best is not None or p.plan is not None or p.phase != "search"
+
+    def __call__(self) -> bool:
+        if not (self.has_plan and self.run.stop_early()):
+            return False
+        interrupts.keep(self._late)
+        return True
+
+    def _late(self) -> str:
+        return (
+            f"asked to stop early, the run had not written its plan {STOP_GRACE_S:g} s "
+            f"later; {self.kept()}"
+        )
+
+
+def estimate_text(est: Estimate) -> str:
+    """What the run was estimated to need before its heavy work (``Problem.estimate``):
+    peak memory above what the process holds, and the counts it follows from. The
+    estimate holds no time."""
+    what = [f"{est.optimizer}", f"{est.target_points:,} target points"]
+    if est.orientations:
+        what.append(f"{est.positions:,} mast positions x {est.orientations} orientations")
+    elif est.positions:
+        what.append(f"{est.positions:,} mast positions")
+    if est.nonzeros:
+        what.append(f"~{count_text(est.nonzeros)} candidate matrix entries")
+    if est.parts > 1:
+        what.append(f"in {est.parts} parts")
+    if est.optimizer == "es" and est.workers > 1:  # (only the ES has worker processes)
+        what.append(f"{est.workers} processes")
+    peak = f"peak ~{bytes_text(est.peak_bytes)} (at the {est.peak_stage} stage)"
+    return f"{peak} for {', '.join(what)}"
+
+
+def stopped_text(result: Result, out_dir: Path, render: bool) -> str:
+    """The last line of a run stopped early (without ``interrupted: ``): the plan kept,
+    with its bound, and where it is."""
+    m = result.metrics
+    proof = ""
+    if m.get("lower_bound") is not None:
+        proof = f", bound {number(m['lower_bound'])}, gap {m['gap']:.1%}"
+    skipped = " (result_view.png not rendered)" if render else ""
+    return (
+        f"stopped early; the best plan by then, {m['sensors']} sensors on {m['masts']} masts "
+        f"(objective {number(m['objective'])}{proof}, coverage {m['coverage_fraction']:.2%}), "
+        f'is written in {out_dir}{skipped}; result.json says "interrupted": true'
+    )
+
+
+def preload_figure() -> None:
+    """Import what draws coverage.png now rather than at the end: 0.7 s of the
+    finish of a run stopped early (``interrupts.STOP_GRACE_S``) on two_routes."""
+    import matplotlib.backends.backend_agg  # noqa: F401
+    import matplotlib.collections  # noqa: F401
+    import matplotlib.figure  # noqa: F401
+    import matplotlib.style  # noqa: F401
+
+
+def no_mast_names(scene: SceneModel) -> list[str]:
+    """The names of the scene's no-mast zones (``notes.exclusion_lines``)."""
+    return [zone.name for zone in scene.no_mast]
 
 
 def standing_warnings(scene: SceneModel, standing: Standing, path: str) -> list[str]:
@@ -191,6 +301,7 @@ def standing_warnings(scene: SceneModel, standing: Standing, path: str) -> list[
 
 RESULT_NAMES = (
     "result.json",
+    notes.NAME,
     "sensors.csv",
     "coverage.png",
     "result.blend",
@@ -198,8 +309,8 @@ RESULT_NAMES = (
     "sensors.geojson",
     "plan.gpkg",
 )
-"""What ``write_results`` writes (or, for the last two, removes) in the output folder;
-result_view.png too with ``--render``."""
+"""What ``write_results`` writes (or removes: notes.txt when every note was printed, the
+last two without a CRS) in the output folder; result_view.png too with ``--render``."""
 
 
 def _check_out_dir(out_dir: Path, args: argparse.Namespace, scene: str | None) -> None:
@@ -255,10 +366,13 @@ def default_scene() -> str | None:
 
 
 def write_results(result: Result, out_dir: Path, render: bool = False) -> None:
-    """result.json, sensors.csv, the GIS files, coverage.png and result.blend, all or
-    none; result.blend holds the scene with the results collection. The GIS files
-    (``reports.gis_files``): sensors_local.geojson, and with the scene's CRS
-    sensors.geojson (WGS84) and plan.gpkg; without one a note on stderr says so.
+    """result.json, sensors.csv, the GIS files, coverage.png, result.blend and the
+    notes (``notes.exclusion_file``), all or none; result.blend holds the scene with
+    the results collection. The GIS files (``reports.gis_files``):
+    sensors_local.geojson, and with the scene's CRS sensors.geojson (WGS84) and
+    plan.gpkg; without one a note on stderr says so. An earlier run's notes.txt and
+    georeferenced files, when this run writes none, are removed: they would not be
+    this plan's.
 
     render: also result_view.png, the oblique view of that scene, rendered after
     result.blend's bytes were taken; the render leaves the scene as it was.
@@ -281,11 +395,14 @@ def write_results(result: Result, out_dir: Path, render: bool = False) -> None:
     files[out_dir / "result.blend"] = blend_bytes()
     if render:
         files[out_dir / "result_view.png"] = render_view_png(bpy.context.scene)
+    every_note = notes.exclusion_file(result.excluded)
+    if every_note is not None:
+        files[out_dir / notes.NAME] = every_note
     write_files(files)
-    if note:
-        # An earlier run's georeferenced files would not be this plan's.
-        for name in STALE_WITHOUT_CRS:
-            (out_dir / name).unlink(missing_ok=True)
+    stale = [notes.NAME] if every_note is None else []
+    stale += list(STALE_WITHOUT_CRS) if note else []
+    for name in stale:
+        (out_dir / name).unlink(missing_ok=True)
 
 
 STALE_WITHOUT_CRS = ("sensors.geojson", "plan.gpkg")

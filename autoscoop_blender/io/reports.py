@@ -58,7 +58,8 @@ def result_dict(result: Result, extra_versions: dict[str, str] | None = None) ->
     Its ``model`` and ``sensors`` keys form a valid sensors file, so
     ``headless coverage SCENE --sensors result.json`` recomputes the coverage. A
     mixed pack's plan also lists ``models`` (each with its ``sensor_cost``), and each
-    sensor its ``model``.
+    sensor its ``model``. ``interrupted``: true when the run was interrupted and
+    stopped early, with the best plan it had.
     """
     settings = result.settings
     assert result.model is not None, "an optimization has one model"
@@ -75,6 +76,7 @@ def result_dict(result: Result, extra_versions: dict[str, str] | None = None) ->
         "versions": {**versions(), **(extra_versions or {})},
         "metrics": result.metrics,
         "stop_reason": result.stop_reason,
+        "interrupted": result.interrupted,
         "uncovered": list(result.uncovered),
         "no_mast_sites": excluded_list(result),
         "sensors": [

@@ -34,7 +34,8 @@ SENSOR_KEYS = ("x", "y", "height_m", "pitch_deg", "yaw_deg", "model")
 # ``sensors`` it carries these keys, and these in each sensor, which are not read.
 RESULT_TOP_KEYS = (
     "schema", "scene", "targets_fingerprint", "optimizer", "method", "seed", "settings",
-    "versions", "metrics", "stop_reason", "uncovered", "no_mast_sites", "origin", "models",
+    "versions", "metrics", "stop_reason", "interrupted", "uncovered", "no_mast_sites",
+    "origin", "models",
 )  # fmt: skip
 # Masts that stand already (``read_existing``); a result.json's carry more keys.
 MAST_KEYS = ("x", "y")
