@@ -101,6 +101,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="processes that evaluate in parallel (default: one per core, one inside a Blender binary; same answer)",
     )
     opt.add_argument(
+        "--engine",
+        choices=("local", "ray"),
+        default="local",
+        help="where lp builds the candidates of a ground it plans in parts: here (local, "
+        "the default) or on Ray (RAY_ADDRESS, else a local Ray of --workers CPUs; needs "
+        "pip install -r requirements-ray.txt); the same plan",
+    )
+    opt.add_argument(
         "--render",
         action="store_true",
         help="also write result_view.png: an oblique view of result.blend rendered by "

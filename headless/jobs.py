@@ -19,6 +19,8 @@ from autoscoop_blender.core.evaluate import evaluate_layout
 from autoscoop_blender.core.model.scene import SceneModel
 from autoscoop_blender.core.model.sensors import SensorPack
 from autoscoop_blender.core.optimize.base import Progress
+from autoscoop_blender.core.optimize.parts import PartBuilder
+from autoscoop_blender.core.optimize.planner import time_limit
 from autoscoop_blender.core.result import Result, area_at
 from autoscoop_blender.core.run import Run
 from autoscoop_blender.core.settings import CoverageSettings, OptimizeSettings, flag_values
@@ -141,13 +143,19 @@ def optimize(args: argparse.Namespace) -> int:
             return checkpoint.kept_text(settings.optimizer)
 
         interrupts.keep(checkpoint_kept)
+        builder = part_builder(args.engine, make_caster, args.workers)
         run = Run(
             scene, make_caster, model, settings, resume, on_fixed=checkpoint.append,
             workers=workers, existing=existing, existing_masts=existing_masts,
+            part_builder=builder,
         )  # fmt: skip
         if resume:
             print(f"resuming after {len(resume)} fixed sensor(s)", file=sys.stderr)
-        print(f"estimate: {estimate_text(run.problem.estimate)}", file=sys.stderr, flush=True)
+        est = run.problem.estimate
+        limit = ""
+        if settings.optimizer == "lp":
+            limit = f"; time limit {time_limit(settings, est.parts):g} s"
+        print(f"estimate: {estimate_text(est)}{limit}", file=sys.stderr, flush=True)
         preload_figure()
         bar = ProgressBar(t0=run.t0)
         stop = EarlyStop(run, checkpoint_kept)
@@ -158,6 +166,8 @@ def optimize(args: argparse.Namespace) -> int:
                     bar.update(progress)
         finally:  # interrupted too: no worker left, the bar's line ended
             run.close()
+            if builder is not None:
+                builder.close()
             bar.close()
         result = run.result()
         stopped = interrupts.stopped()
@@ -268,6 +278,21 @@ def preload_figure() -> None:
 def no_mast_names(scene: SceneModel) -> list[str]:
     """The names of the scene's no-mast zones (``notes.exclusion_lines``)."""
     return [zone.name for zone in scene.no_mast]
+
+
+def part_builder(engine: str, make_caster: Any, workers: int | None) -> PartBuilder | None:
+    """Where lp builds a ground's parts (``--engine``): None for here, or a
+    ``RayBuilder`` (InputError without Ray, or inside a Blender binary, whose Python
+    Ray's workers would start and which cannot import bpy)."""
+    if engine != "ray":
+        return None
+    import bpy
+
+    if bpy.app.binary_path:
+        raise InputError("--engine ray: not inside a Blender binary; run with Python and bpy")
+    from headless.ray_engine import RayBuilder
+
+    return RayBuilder(make_caster, workers=workers)
 
 
 def standing_warnings(scene: SceneModel, standing: Standing, path: str) -> list[str]:

@@ -136,6 +136,8 @@ PART_POINTS = 20_000
 PART_NONZEROS = 100_000_000
 # The densest part's nonzeros over the average part's, allowed for in the estimate.
 PART_IMBALANCE = 1.5
+# The most parts a run is let go ahead with: a square kilometre at 1 m is about 50.
+MAX_PARTS = 64
 # An ES worker process before its grid and cache: a spawned interpreter with bpy,
 # numpy, scipy and shapely imported and the caster built (measured 373 MiB on
 # two_routes at 0.5 m, less its 19 MiB grid). Each worker then rebuilds the grid and
@@ -725,6 +727,12 @@ def verdict(
         )
     if held + est.peak_bytes > memory:
         return est.peak_stage, have
+    if est.parts > MAX_PARTS:
+        return "nonzeros", (
+            f"that is {est.parts:,} parts of at most {PART_POINTS:,} points and "
+            f"{count_text(PART_NONZEROS)} nonzeros, and the limit is {MAX_PARTS} (about 5 "
+            "minutes a part)"
+        )
     if est.nonzeros / est.parts > MAX_NONZEROS:
         return "nonzeros", f"the limit is {count_text(MAX_NONZEROS)} (int32 indices)"
     return None

@@ -179,10 +179,10 @@ def test_the_command_line_writes_the_plan_it_was_stopped_with(tmp_path, how):
 # The lp stops early only as fast as it ends its solves and builds plans from what it
 # has, and the run's report evaluates every sensor afresh. Measured 2026-11-25 on
 # two_routes (2 cores, beside other runs), stop_early in the bounds stage: 30 to 65 s
-# to the written plan, as the fewest masts' MILP ran on to its end (``bound._run``'s
-# ``cancelSolve`` does nothing unless the Highs object has ``HandleUserInterrupt =
-# True``); with that set, 14 to 16 s: about 5 s to end the solves, 5 s of plans, 3 s
-# of report, 1.4 to 2 s of writing.
+# to the written plan while ``cancelSolve`` did nothing (the fewest masts' MILP ran on
+# to its end); ``bound._new_highs`` now sets ``HandleUserInterrupt``, and 14 to 16 s
+# remain: about 5 s to end the solves, 5 s of plans, 3 s of report, 1.4 to 2 s of
+# writing.
 LP_FINISH = pytest.mark.xfail(
     strict=True,
     reason="the lp's finish after stop_early takes 14-65 s on two_routes (see above)",

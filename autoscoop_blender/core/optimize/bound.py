@@ -145,6 +145,8 @@ def _add_columns(
 
 def _new_highs(time_limit_s: float | None) -> highspy.Highs:
     h = highspy.Highs()
+    # Without it ``cancelSolve`` does nothing and a stopped run waits for the solve.
+    h.HandleUserInterrupt = True
     h.setOptionValue("output_flag", False)
     h.setOptionValue("threads", 1)
     if time_limit_s is not None:
