@@ -13,6 +13,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from autoscoop_blender.core import budget
 from autoscoop_blender.core.candidates import CandidateSet
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA, SensorPose
 from autoscoop_blender.core.optimize import lp as lp_module
@@ -493,7 +494,7 @@ def test_prove_bound_with_models_of_different_costs():
 def test_prove_bound_splits_a_large_target_and_runs_the_masts_lp_alone(monkeypatch):
     """With parts of at most 4 points, the 7 points are solved in 2 parts; the fewest
     masts then get their LP alone unless the masts are the objective."""
-    monkeypatch.setattr(lp_module, "PART_POINTS", 4)
+    monkeypatch.setattr(budget, "PART_POINTS", 4)
     calls = spy(monkeypatch, "site_cover")
     for objective in ("sensors", "masts"):
         problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective=objective)
@@ -503,7 +504,7 @@ def test_prove_bound_splits_a_large_target_and_runs_the_masts_lp_alone(monkeypat
     assert [call["milp"] for call in calls["site_cover"]] == [False, True]
     problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="sensors")
     problem.grid.target_xy = np.zeros((7, 2))
-    monkeypatch.setattr(lp_module, "PART_POINTS", 7)
+    monkeypatch.setattr(budget, "PART_POINTS", 7)
     (bound, lp, *_), _ = _bound_run(problem)
     assert lp.parts == 1 and calls["site_cover"][-1]["milp"] is True
 
@@ -648,7 +649,7 @@ def test_the_deadline_and_the_stop_reach_every_solve(monkeypatch):
 
 
 def test_the_lp_in_parts_is_handed_the_deadline_and_the_stop(monkeypatch):
-    monkeypatch.setattr(lp_module, "PART_POINTS", 4)
+    monkeypatch.setattr(budget, "PART_POINTS", 4)
     calls = spy(monkeypatch, "cover_lp", "split_cover_lp")
     problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="sensors")
     problem.grid.target_xy = np.array([(float(n), 0.0) for n in range(7)])
@@ -931,7 +932,7 @@ def test_the_rest_from_every_site_is_per_cost_too(monkeypatch):
 def test_prove_bound_plans_only_when_asked(monkeypatch):
     """By default no plan on the fewest masts (``bound_only`` needs none); a target
     whose points have no known place is solved whole, with the masts' MILP."""
-    monkeypatch.setattr(lp_module, "PART_POINTS", 4)
+    monkeypatch.setattr(budget, "PART_POINTS", 4)
     calls = spy(monkeypatch, "site_cover")
     problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="sensors")
     inst = rows_instance(GREEDY_TRAP, 7, 7)  # no xy

@@ -4,7 +4,7 @@ On the problem's candidate set (``core/candidates.py``):
 
 1. a greedy plan gives the first columns and a first incumbent;
 2. the LP relaxation by column generation (``bound.cover_lp``; in parts of at most
-   ``PART_POINTS`` target points, ``bound.split_cover_lp``) and, in a second
+   ``budget.PART_POINTS`` target points, ``bound.split_cover_lp``) and, in a second
    thread, the fewest masts by a MILP over positions (``bound.site_cover``; its LP
    only on a target in parts) prove the lower bounds: sensors, masts, and cost (the
    larger of mast_cost x masts + sensor_cost x sensors and the mast-aware LP's
@@ -40,6 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import sparse
 
+from .. import budget
 from ..candidates import CandidateSet, sensor_price
 from ..problem import Problem
 from .base import (
@@ -87,10 +88,6 @@ THRESHOLDS = (0.9, 0.7, 0.5, 0.3, 0.2)
 # 100 candidates each that see the most (3,710) took 148 s and lowered the cost
 # from 239 to 215.
 MAX_MILP_CANDIDATES = 4000
-# Target points per part when the LP is solved in parts (``bound.split_cover_lp``):
-# two_routes (16,555 points) is solved whole, three tiles of full_ground (49,665) in
-# three parts.
-PART_POINTS = 20_000
 # A part's LP (``parts.py``) stops once its bound is within this fraction of its value
 # (0.5 % took two_routes' parts twice as long as the whole LP, which stops once its
 # integer bound is final).
@@ -349,7 +346,7 @@ def prove_bound(
         ones = part.lp_cost
     unit = float(price) if np.ndim(price) == 0 else 1.0
     per_sensor = {"cost": unit, "sensors": 1.0}.get(s.objective)
-    n_parts = 1 if inst.xy is None else math.ceil(inst.n_points / PART_POINTS)
+    n_parts = 1 if inst.xy is None else math.ceil(inst.n_points / budget.PART_POINTS)
     initial = np.array(greedy.chosen, dtype=np.int64)
     if part is not None:
         start = complete(Cover(part.lp_inst), every, sensor_cost=price).chosen
