@@ -58,6 +58,10 @@ class CandidateSet:
     orientation: I64
     model: I64
     matrix: sparse.csr_matrix
+    # Candidates left out because another at the same position and of the same model
+    # covers every point they cover (``dominated``), and their nonzeros.
+    dominated: int = 0
+    dominated_nonzeros: int = 0
 
     def __len__(self) -> int:
         return len(self.position)
@@ -123,6 +127,10 @@ def _build(problem: Problem, points: I64, near: I64) -> Generator[int, None, Par
     local = np.full(problem.n_targets, -1, dtype=np.int64)
     local[points] = np.arange(len(points))
     whole = len(points) == problem.n_targets  # every point: no share to count
+    # Dominated candidates go where each point needs one sensor (``dominated``); the
+    # site's union (``seen``) is theirs too, so its share does not change.
+    prune = problem.k_max == 1
+    n_dropped = dropped_nonzeros = 0
     nonzeros = 0
     # Column indices as int32, the matrix's own index type (scipy keeps them uncopied).
     cols: list[NDArray[np.int32]] = []
@@ -139,6 +147,11 @@ def _build(problem: Problem, points: I64, near: I64) -> Generator[int, None, Par
             x, y = positions[i]
             pose = problem.pose(x, y, ang[0, 0], ang[0, 1], m)
             covered, ordinal = problem.probe.cover_many(model, pose, rots)
+            if prune:
+                drop = dominated(covered)
+                n_dropped += int(drop.sum())
+                dropped_nonzeros += int(covered[drop].sum())
+                covered[drop] = False
             here = local[ordinal]
             here32 = here.astype(np.int32)
             mine = covered if whole else covered & (here >= 0)
@@ -177,6 +190,8 @@ def _build(problem: Problem, points: I64, near: I64) -> Generator[int, None, Par
         orientation=np.array(cand_ori, dtype=np.int64),
         model=np.array(cand_model, dtype=np.int64),
         matrix=matrix,
+        dominated=n_dropped,
+        dominated_nonzeros=dropped_nonzeros,
     )
     sites = np.unique(cands.position)
     site_share = np.ones(len(sites))
@@ -185,6 +200,50 @@ def _build(problem: Problem, points: I64, near: I64) -> Generator[int, None, Par
             [np.count_nonzero(local[seen[int(s)]] >= 0) / len(seen[int(s)]) for s in sites]
         )
     return PartCandidates(cands, np.array(share, dtype=float), sites, site_share)
+
+
+def dominated(covered: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """(O,) which of O orientations at one position are dominated: another covers every
+    point they cover (``covered``: (O, K) bool), and more points, or as many with a
+    lower index (of equal sets the first stays). Orientations that cover nothing are
+    not dominated (they are no candidates anyway).
+
+    Leaving them out changes no bound and no optimum where each point needs one
+    sensor: a plan that uses a dominated candidate is at least as good with its
+    dominator in its place (same mast, same cost, a superset of points), so the best
+    plan and every LP bound on the candidates without them are those of all
+    candidates. (With k > 1 a plan may need both, so they are kept there.)
+
+    Per point, the set of orientations covering it as a bitset; orientation o is
+    dominated when the AND of its points' bitsets holds an orientation ranked above
+    it (more points, or as many and a lower index). Hand-written: no library tests
+    subset relations among rows of a boolean matrix."""
+    size = covered.sum(axis=1)
+    rows = np.flatnonzero(size)
+    out = np.zeros(len(covered), dtype=bool)
+    if len(rows) < 2:
+        return out
+    cov = covered[rows][:, covered[rows].any(axis=0)]
+    n = len(rows)
+    words = (n + 63) // 64
+
+    def bitsets(bits: NDArray[np.bool_]) -> NDArray[np.uint64]:
+        """(R, n) bool -> (R, words) uint64, bit j of row r = bits[r, j]."""
+        packed = np.packbits(bits, axis=1, bitorder="little")
+        padded = np.zeros((len(bits), words * 8), dtype=np.uint8)
+        padded[:, : packed.shape[1]] = packed
+        return padded.view(np.uint64)
+
+    by_point = bitsets(cov.T)  # (points, words)
+    r, pts = np.nonzero(cov)  # row-major: each orientation's points in a run
+    starts = np.searchsorted(r, np.arange(n))
+    common = np.bitwise_and.reduceat(by_point[pts], starts, axis=0)  # (n, words)
+    # rank: more points first, then the lower index; above[o]: those ranked before o.
+    rank = np.empty(n, dtype=np.int64)
+    rank[np.lexsort((np.arange(n), -size[rows]))] = np.arange(n)
+    above = bitsets(rank[None, :] < rank[:, None])
+    out[rows] = (common & above).any(axis=1)
+    return out
 
 
 def sensor_price(problem: Problem, cands: CandidateSet) -> float | F64:

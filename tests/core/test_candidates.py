@@ -58,6 +58,19 @@ def test_every_pose_that_covers_something_is_one_row_with_its_points():
                 expected[(i, o)] = covered
     # Some orientations see the target, most do not.
     assert 50 < len(expected) < 4 * len(angles) / 2
+    # A pose whose points another pose at its position covers too (more of them, or
+    # as many with a lower orientation index) is left out: by plain set inclusion.
+    sets = {key: set(v.tolist()) for key, v in expected.items()}
+
+    def beaten(a, b):
+        return a[0] == b[0] and (len(sets[b]), -b[1]) > (len(sets[a]), -a[1])
+
+    dominated = {a for a in sets if any(beaten(a, b) and sets[a] <= sets[b] for b in sets)}
+    # On a 10 m square most poses see part of what a few others see whole.
+    assert len(expected) - len(dominated) == 4 and len(cands) == 4
+    assert cands.dominated == len(dominated)
+    assert cands.dominated_nonzeros == sum(len(sets[a]) for a in dominated)
+    expected = {key: v for key, v in expected.items() if key not in dominated}
     got = list(zip(cands.position.tolist(), cands.orientation.tolist()))
     assert got == sorted(expected)  # each once, by position then orientation
     assert cands.model.tolist() == [0] * len(got) and cands.models == (PAPER_CAMERA,)
@@ -116,3 +129,35 @@ def test_the_limit_is_the_most_nonzeros_allowed(monkeypatch):
     monkeypatch.setattr(budget, "nonzero_limit", lambda optimizer: asked.append(optimizer) or total)
     assert built(p)[0].matrix.nnz == total
     assert asked == ["greedy"]
+
+
+def test_dominated_orientations_by_hand():
+    from autoscoop_blender.core.candidates import dominated
+
+    rows = [
+        [1, 1, 0, 0, 0],  # 0: inside 2
+        [0, 0, 0, 0, 0],  # 1: covers nothing: not a candidate, not dominated
+        [1, 1, 1, 0, 0],  # 2: the largest of its kind
+        [0, 0, 1, 1, 0],  # 3: overlaps 2, inside nothing
+        [0, 0, 1, 1, 0],  # 4: equal to 3: the later one goes
+        [0, 0, 0, 0, 1],  # 5: alone
+    ]
+    got = dominated(np.array(rows, dtype=bool))
+    assert got.tolist() == [True, False, False, False, True, False]
+    # More than 64 orientations (two words of bits): every one inside the last.
+    many = np.zeros((70, 100), dtype=bool)
+    for o in range(70):
+        many[o, o : o + 3] = True
+    many[69, :] = True
+    assert dominated(many).tolist() == [True] * 69 + [False]
+    assert not dominated(np.zeros((3, 4), dtype=bool)).any()
+
+
+def test_with_k_2_dominated_candidates_stay():
+    """A plan may need a pose and its dominator both when points need two sensors."""
+    from dataclasses import replace
+
+    one, _ = built(problem())
+    two, _ = built(problem(settings=replace(SETTINGS, coverage_k=2)))
+    assert two.dominated == 0 and len(two) == len(one) + one.dominated
+    assert two.matrix.nnz == one.matrix.nnz + one.dominated_nonzeros

@@ -18,6 +18,7 @@ the relative-coverage metric; evaluators look at outside cells only within
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -212,6 +213,52 @@ def view(
                 assert lines.facing is not None, "sight_lines(..., pixels=True) for pixels"
                 detects &= model.px_per_m(ground, lines.facing) >= need
     return in_view, density, detects
+
+
+def detects_many(
+    model: SensorModel, rots: F64, lines: SightLines, need: F64 | None = None
+) -> NDArray[np.bool_]:
+    """(O, K) ``view(model, rots, lines, need)[2]`` for O frames ``rots`` (O, 3, 3): the
+    same element by element, for less work. A direction in the FoV lies within the
+    FoV's cone about the optical axis: its forward component is at least the cone's
+    cosine. That is screened for every pair with one matrix product (its rounding,
+    ~1e-16, far inside the 1e-9 of room given), and only the pairs that pass (on
+    two_routes about a fifth) go through ``to_sensor``'s and ``view``'s arithmetic,
+    so the answers are bit for bit those of ``view``."""
+    out = np.zeros((len(rots), len(lines.dist)), dtype=bool)
+    in_range = (lines.dist > 1e-9) & (lines.dist <= model.range_m)
+    # The cone a hair wider than the FoV's, for the FoV test's own tolerance.
+    off_axis = math.radians(model.max_off_axis_deg()) + 1e-6
+    if off_axis < math.pi / 2:
+        screen = (rots[:, 0, :] @ lines.d.T >= math.cos(off_axis) - 2e-9) & in_range
+    else:
+        screen = np.broadcast_to(in_range, out.shape)
+    o, k = np.nonzero(screen)
+    d = lines.d[k]
+    local = np.empty((len(o), 3))
+    for c in range(3):
+        local[:, c] = rots[o, c, 0] * d[:, 0] + rots[o, c, 1] * d[:, 1] + rots[o, c, 2] * d[:, 2]
+    with np.errstate(invalid="ignore"):
+        in_view = model.in_fov(local)
+        if lines.gd is lines.d:
+            ground = local
+        else:
+            gd = lines.gd[k]
+            ground = np.empty_like(local)
+            for c in range(3):
+                ground[:, c] = (
+                    rots[o, c, 0] * gd[:, 0] + rots[o, c, 1] * gd[:, 1] + rots[o, c, 2] * gd[:, 2]
+                )
+        density = np.where(in_view, model.rays_per_sr(ground) * lines.surface[k], 0.0)
+        detects = in_view & (density >= model.min_density_per_m2)
+        if need is not None:
+            if model.resolution_px is None:
+                detects &= need[k] == 0
+            else:
+                assert lines.facing is not None, "sight_lines(..., pixels=True) for pixels"
+                detects &= model.px_per_m(ground, lines.facing[k]) >= need[k]
+    out[o[detects], k[detects]] = True
+    return out
 
 
 def cells_in_reach(

@@ -36,6 +36,7 @@ from .base import (
     SightLines,
     cells_in_reach,
     clear_sight,
+    detects_many,
     pixel_need,
     sight_lines,
     view,
@@ -142,7 +143,7 @@ class CachedTargetedEvaluator:
         some orientation needs and nothing has asked about yet."""
         reach, answers = self._position(model, pose, None)
         px_need = pixel_need(self.grid, model, reach.ordinal)
-        _, _, need = view(model, rots, reach.lines, px_need)
+        need = detects_many(model, rots, reach.lines, px_need)
         self.extra_rays += self._ask(pose, reach, answers, need.any(axis=0))
         return need & (answers == _CLEAR), reach.ordinal
 

@@ -102,11 +102,13 @@ class PartInputs:
     """How a part of a ground planned in parts is solved (``parts.py``): its LP at
     ``lp_cost`` (C,) (its shares) on ``lp_inst`` (the part with nothing fixed: it bounds
     the part, while its plans cover what the parts before left), and instead of the
-    fewest masts' MILP, ``sites``: the sites of its masts LP to plan on."""
+    fewest masts' MILP, ``sites``: the part's masts LP, a generator that yields while
+    it works and returns the sites to plan on. It runs beside the sensors LP, as the
+    fewest masts do on a whole ground (two solves, two cores)."""
 
     lp_cost: F64
     lp_inst: CoverInstance
-    sites: SiteSolution
+    sites: Generator[None, None, SiteSolution]
 
 
 def instance(
@@ -252,7 +254,7 @@ def masts_then_plan(
     stop: threading.Event | None,
     plan: bool,
     milp: bool = True,
-    known: SiteSolution | None = None,
+    known: Generator[None, None, SiteSolution] | None = None,
 ) -> Generator[Any, None, tuple[SiteSolution, list[int] | None]]:
     """The fewest masts and, when ``plan``, a plan on a few positions: on the sites
     of the fewest masts' MILP and on those of its LP relaxation (more sites, each
@@ -260,12 +262,13 @@ def masts_then_plan(
     extra), improved, then with masts closed while that is cheaper; the cheaper of
     the two, and then the mast-aware MILP over its masts (``milp_candidates``). None
     when there is no plan. ``milp``: solve the fewest masts' MILP (else its LP
-    only); ``known``: the sites found already (a part's, ``PartInputs``): neither."""
-    sites = known
-    if sites is None:
-        sites = yield from site_cover(
+    only); ``known``: where the sites come from instead (a part's masts LP,
+    ``PartInputs``)."""
+    if known is None:
+        known = site_cover(
             inst, cands.position, len(cands.positions), deadline, stop, milp, _standing(problem)
         )
+    sites = yield from known
     if not plan or (stop is not None and stop.is_set()):
         return sites, None
     site_of = cands.position

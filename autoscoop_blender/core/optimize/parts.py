@@ -150,6 +150,18 @@ def site_line(
     return (lp.slope, lp.intercept), lp.rounds, np.sort(used).astype(np.int64)
 
 
+def part_sites(
+    masts_lp: Generator[None, None, tuple[Line, int, I64]], before: I64, found: dict[str, Any]
+) -> Generator[None, None, SiteSolution]:
+    """The sites a part's plans look for masts at: those its masts LP (``site_line``)
+    uses and ``before`` (the masts the parts before stood there). The LP's line and
+    rounds go into ``found`` ("line", "rounds") once it is solved."""
+    line, rounds, lp_sites = yield from masts_lp
+    found.update(line=line, rounds=rounds)
+    mine = np.union1d(lp_sites, before).astype(np.int64)
+    return SiteSolution(0, mine[:0], mine)
+
+
 def _mast_sites(problem: Problem, sensors: list[FixedSensor]) -> I64:
     """The positions (indices into the problem's) of the sensors' masts."""
     found = (problem.space.index_of(f.pose.x, f.pose.y) for f in sensors)
@@ -401,16 +413,17 @@ def solve_in_parts(
                 part_deadline = None
                 if deadline is not None:
                     part_deadline = time.perf_counter() + (deadline - time.perf_counter()) * share
-                masts_lp = site_line(full, part, problem.space.standing, part_deadline, stop)
-                line, site_rounds, lp_sites = yield from busy(masts_lp, k, "bounds")
-                mast_lines[k] = line
-                rounds += site_rounds
                 # Its plans look for masts where its masts LP puts them and where the
                 # parts before stood theirs, which cost it nothing more.
                 used = _mast_sites(problem, solution.sensors[first:])
-                mine = np.union1d(lp_sites, np.intersect1d(used, part.sites))
+                masts_lp: dict[str, Any] = {}
+                sites = part_sites(
+                    site_line(full, part, problem.space.standing, part_deadline, stop),
+                    np.intersect1d(used, part.sites),
+                    masts_lp,
+                )
                 unit = costs[cands.model] if mixed else 1.0
-                how = PartInputs(unit * part.share, full, SiteSolution(0, mine[:0], mine))
+                how = PartInputs(unit * part.share, full, sites)
                 with _standing_too(problem, used):
                     solve = prove_and_plan(problem, cands, left, solution, part_deadline, stop, how)
                     while True:
@@ -421,7 +434,8 @@ def solve_in_parts(
                             break
                         yield where(p, k, "solve")
                 sensor_lines[k] = (lp.slope, lp.intercept)
-                rounds += lp.rounds
+                mast_lines[k] = masts_lp.get("line", (0.0, 0.0))
+                rounds += lp.rounds + masts_lp.get("rounds", 0)
                 for c in in_gain_order(left, chosen):
                     if len(solution.sensors) >= problem.max_sensors:
                         break
