@@ -601,15 +601,21 @@ def test_best_scale_by_hand():
 
 class SlowHighs:
     """Stands for HiGHS on a long solve in ``bound._run``: ``run`` works until
-    ``cancelSolve`` is called, at most ``work_s`` seconds."""
+    ``cancelSolve`` is called (and ``notices``), at most ``work_s`` seconds."""
 
-    def __init__(self, work_s):
+    def __init__(self, work_s, notices=True):
         self.work_s = work_s
+        self.notices = notices
         self.cancelled = threading.Event()
         self.cancels = 0
+        self.runs = 0
 
     def run(self):
-        self.cancelled.wait(self.work_s)
+        self.runs += 1
+        if self.notices:
+            self.cancelled.wait(self.work_s)
+        else:
+            time.sleep(self.work_s)
 
     def cancelSolve(self):  # noqa: N802 (HiGHS' name)
         self.cancels += 1
@@ -620,17 +626,44 @@ def test_a_solve_runs_to_its_end_yielding_while_it_works():
     """0.3 s of work, polled every 0.05 s: yields meanwhile, never cancels."""
     h = SlowHighs(0.3)
     finished, yields = steps(bound._run(h, threading.Event()))
-    assert finished and h.cancels == 0 and len(yields) >= 2
+    assert finished is bound.Solve.DONE and h.cancels == 0 and len(yields) >= 2
+
+
+def stop_after(stop, seconds):
+    threading.Timer(seconds, stop.set).start()
 
 
 def test_a_stop_cancels_the_solve_once():
     h = SlowHighs(5.0)
     stop = threading.Event()
-    stop.set()
+    stop_after(stop, 0.2)
     start = time.perf_counter()
     finished, _ = steps(bound._run(h, stop))
-    assert not finished and h.cancels == 1
-    assert time.perf_counter() - start < 2.0
+    assert finished is bound.Solve.STOPPED and h.cancels == 1
+    assert time.perf_counter() - start < 1.0
+
+
+def test_a_stopped_run_starts_no_solve():
+    h = SlowHighs(5.0)
+    stop = threading.Event()
+    stop.set()
+    finished, yields = steps(bound._run(h, stop))
+    assert finished is bound.Solve.GONE and yields == []
+    time.sleep(0.1)
+    assert h.runs == 0 and h.cancels == 0
+
+
+def test_a_solve_slow_to_notice_a_cancel_is_left_to_end_alone():
+    """HiGHS notices a cancel only between its own steps: the run goes on after
+    ``CANCEL_WAIT_S`` and must not read the model (GONE)."""
+    h = SlowHighs(2.0, notices=False)
+    stop = threading.Event()
+    stop_after(stop, 0.2)
+    start = time.perf_counter()
+    finished, _ = steps(bound._run(h, stop))
+    took = time.perf_counter() - start
+    assert finished is bound.Solve.GONE and h.cancels == 1
+    assert 0.2 + bound.CANCEL_WAIT_S - 0.05 < took < 1.2
 
 
 def test_closing_the_wait_cancels_the_solve():

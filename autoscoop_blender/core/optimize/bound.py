@@ -57,6 +57,7 @@ Blender operator) stays responsive; closing the generator cancels the solve.
 
 from __future__ import annotations
 
+import enum
 import math
 import threading
 import time
@@ -76,6 +77,8 @@ I64 = NDArray[np.int64]
 
 # How often a waiting generator yields, s.
 POLL_S = 0.05
+# How long a cancelled solve is waited for, s (``_run``).
+CANCEL_WAIT_S = 0.3
 # A bound is lowered by this much (relative) against the solver's tolerances.
 SAFETY = 1e-6
 # Branch-and-bound nodes of the mast-aware MILP: a limit in work, not seconds, so the
@@ -83,9 +86,25 @@ SAFETY = 1e-6
 MAX_NODES = 2000
 
 
-def _run(h: highspy.Highs, stop: threading.Event | None = None) -> Generator[None, None, bool]:
+class Solve(enum.Enum):
+    """How a solve in its thread (``_run``) ended: ran to its end (an optimum, or the
+    solver's own limits); stopped, the model idle and readable; or never ran or left
+    running in its thread, where the model must not be read."""
+
+    DONE = "done"
+    STOPPED = "stopped"
+    GONE = "gone"
+
+
+def _run(h: highspy.Highs, stop: threading.Event | None = None) -> Generator[None, None, Solve]:
     """Run ``h`` in a thread, yielding while it works; cancel it if closed early or
-    when ``stop`` is set. Returns whether the solve ran to its end."""
+    when ``stop`` is set. Set already, nothing is started (a stopped run begins no new
+    solve). A cancelled solve is waited for at most ``CANCEL_WAIT_S``: HiGHS notices
+    a cancel between its own steps (on two_routes 1 to 2 s into an LP, 4 s into a
+    MILP), and a stopped run must end within 5 s; one that has not noticed yet ends in
+    its (daemon) thread."""
+    if stop is not None and stop.is_set():
+        return Solve.GONE
     done = threading.Event()
 
     def work() -> None:
@@ -100,12 +119,16 @@ def _run(h: highspy.Highs, stop: threading.Event | None = None) -> Generator[Non
             if stop is not None and stop.is_set() and not stopped:
                 h.cancelSolve()
                 stopped = True
+                break
             yield
     finally:
         if not done.is_set():
-            h.cancelSolve()
-        thread.join()
-    return not stopped
+            if not stopped:  # closed early (the operator cancelled)
+                h.cancelSolve()
+            done.wait(CANCEL_WAIT_S)
+    if not stopped:
+        return Solve.DONE
+    return Solve.STOPPED if done.is_set() else Solve.GONE
 
 
 def _empty_rows(h: highspy.Highs, lower: F64, upper: F64) -> None:
@@ -296,7 +319,7 @@ def cover_lp(
     )  # fmt: skip
     while True:
         rounds += 1
-        if not (yield from _run(h, stop)):
+        if (yield from _run(h, stop)) is not Solve.DONE:
             return last  # stopped in the middle of a solve: its values are not optimal
         sol = h.getSolution()
         # Cut short by the time limit: the duals so far still give a Lagrangian bound
@@ -597,7 +620,8 @@ def site_cover(
     h = model()
     lp_sites = np.zeros(0, dtype=np.int64)
     lp_bound = 0
-    if (yield from _run(h, stop)) and h.getModelStatus() == highspy.HighsModelStatus.kOptimal:
+    solved = yield from _run(h, stop)
+    if solved is Solve.DONE and h.getModelStatus() == highspy.HighsModelStatus.kOptimal:
         lp_sites = np.flatnonzero(np.asarray(h.getSolution().col_value)[n:] > 1e-6)
         lp_bound = math.ceil(float(h.getInfo().objective_function_value) * (1 - SAFETY) - 1e-6)
     if not milp:
@@ -610,7 +634,8 @@ def site_cover(
         np.arange(first, n + n_sites, dtype=np.int32),
         np.array([highspy.HighsVarType.kInteger] * (n + n_sites - first)),
     )
-    yield from _run(h, stop)
+    if (yield from _run(h, stop)) is Solve.GONE:
+        return SiteSolution(max(lp_bound, 0), np.zeros(0, dtype=np.int64), lp_sites)
     info = h.getInfo()
     if h.getModelStatus() == highspy.HighsModelStatus.kOptimal:
         bound = round(float(info.objective_function_value))
@@ -686,7 +711,8 @@ def sensors_on_sites(
         .tolist()
     )
     h.setSolution(first)
-    yield from _run(h, stop)
+    if (yield from _run(h, stop)) is Solve.GONE:
+        return list(start)
     values = np.asarray(h.getSolution().col_value)
     if len(values) != n + n_cols + n_sites or h.getInfo().primal_solution_status != 2:
         return list(start)

@@ -92,9 +92,6 @@ MAX_MILP_CANDIDATES = 4000
 # (0.5 % took two_routes' parts twice as long as the whole LP, which stops once its
 # integer bound is final).
 PART_REL_GAP = 0.02
-# Once stopped (Esc, Ctrl-C), plans are rounded from the LP for at most this long, s:
-# an interrupted run ends within 5 s (two_routes rounds its 5 plans in about 1 s).
-STOPPED_PLANS_S = 1.5
 
 
 @dataclass(frozen=True)
@@ -396,8 +393,8 @@ def prove_and_plan(
     part: PartInputs | None = None,
 ) -> Generator[Progress, None, tuple[list[int], PlanBound, LPSolution]]:
     """The bounds, the best plan of candidates (see the module docstring) and the LP;
-    ``stop`` ends the search early: the bounds so far, and plans rounded from the LP
-    so far for at most ``STOPPED_PLANS_S`` (at least one). part: as for
+    ``stop`` ends the search early: the bounds so far and the best plan found by then
+    (no more are rounded from the LP: a stopped run ends within 5 s). part: as for
     ``prove_bound``."""
     s = problem.settings
 
@@ -414,11 +411,12 @@ def prove_and_plan(
         "search", problem.rho, bound=lower, best=min(map(value, plans)), stage="plans"
     )
     price = sensor_price(problem, cands) if s.objective == "cost" else 1.0
-    rounding = time.perf_counter()
-    for plan in _lp_plans(inst, lp, price):
-        plans.append(plan)
-        if stop is not None and stop.is_set() and time.perf_counter() - rounding > STOPPED_PLANS_S:
+    rounded = _lp_plans(inst, lp, price)
+    while stop is None or not stop.is_set():  # each plan is rounded only when asked for
+        plan = next(rounded, None)
+        if plan is None:
             break
+        plans.append(plan)
         yield solution.progress(
             "search", problem.rho, bound=lower, best=min(map(value, plans)), stage="plans"
         )
