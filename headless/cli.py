@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -220,7 +221,11 @@ def main(argv: list[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
     except KeyboardInterrupt:
         return _interrupted()
-    logging.basicConfig(level=logging.WARNING, format="%(levelname)s: %(message)s")
+    # AUTOSCOOP_LOG=info (or debug): the stages' own figures on stderr, for developers.
+    level = os.environ.get("AUTOSCOOP_LOG", "warning").upper()
+    logging.basicConfig(
+        level=getattr(logging, level, logging.WARNING), format="%(levelname)s: %(message)s"
+    )
     handlers: dict[str, Callable[[argparse.Namespace], int]] = {
         "coverage": _coverage,
         "optimize": _optimize,

@@ -186,10 +186,10 @@ def _cut_short(monkeypatch, cut):
     real_run = bound._run
     count = itertools.count(1)
 
-    def run(h, stop=None):
+    def run(h, stop=None, beside=None):
         if cut(next(count), stop):
-            return False
-        return (yield from real_run(h, stop))
+            return bound.Solve.GONE
+        return (yield from real_run(h, stop, beside))
 
     monkeypatch.setattr(bound, "_run", run)
 

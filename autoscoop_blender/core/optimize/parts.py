@@ -32,6 +32,7 @@ point). The cost bound is mast_cost x masts + sensor_cost x sensors, each rounde
 from __future__ import annotations
 
 import copy
+import logging
 import math
 import threading
 import time
@@ -63,6 +64,8 @@ from .lp import PartInputs, in_gain_order, prove_and_plan
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
 Line = tuple[float, float]
+
+log = logging.getLogger(__name__)
 
 # The masts LP of a part gets at most this long, s: its dense columns are slow to
 # solve (a part of Town04: 57 s with the interior point method; by column generation
@@ -156,8 +159,9 @@ def part_sites(
     """The sites a part's plans look for masts at: those its masts LP (``site_line``)
     uses and ``before`` (the masts the parts before stood there). The LP's line and
     rounds go into ``found`` ("line", "rounds") once it is solved."""
+    t0 = time.perf_counter()
     line, rounds, lp_sites = yield from masts_lp
-    found.update(line=line, rounds=rounds)
+    found.update(line=line, rounds=rounds, seconds=time.perf_counter() - t0)
     mine = np.union1d(lp_sites, before).astype(np.int64)
     return SiteSolution(0, mine[:0], mine)
 
@@ -387,11 +391,18 @@ def solve_in_parts(
             if stop.is_set():
                 stopped = True
                 break
+            started = time.perf_counter()
             part = yield from busy(builder.build(k), k, "candidates", stop)
             if part is None:  # stopped while it was built
                 stopped = True
                 break
             cands = part.cands
+            log.info(
+                "part %d/%d: %d points, %d candidates (%d dominated left out), %d nonzeros "
+                "in %.1f s", k + 1, n_parts, len(points), len(cands), cands.dominated,
+                cands.matrix.nnz, time.perf_counter() - started,
+            )  # fmt: skip
+            solving = time.perf_counter()
             taken = taken_candidates(cands, solution)
             # The part as the bound sees it (nothing fixed but what the run started
             # with) and as its plan does (what the parts before cover is covered).
@@ -436,6 +447,14 @@ def solve_in_parts(
                 sensor_lines[k] = (lp.slope, lp.intercept)
                 mast_lines[k] = masts_lp.get("line", (0.0, 0.0))
                 rounds += lp.rounds + masts_lp.get("rounds", 0)
+                at = full.goal
+                log.info(
+                    "part %d/%d: sensors LP %.2f >= %.2f at goal %d (%d rounds), masts LP "
+                    "line %.2f (%.1f s), plan %d; %.1f s", k + 1, n_parts, lp.value,
+                    lp.slope * at - lp.intercept, at, lp.rounds,
+                    mast_lines[k][0] * at - mast_lines[k][1], masts_lp.get("seconds", 0.0),
+                    len(chosen), time.perf_counter() - solving,
+                )  # fmt: skip
                 for c in in_gain_order(left, chosen):
                     if len(solution.sensors) >= problem.max_sensors:
                         break
