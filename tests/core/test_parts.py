@@ -5,6 +5,7 @@ joined plan whose coverage an independent recount confirms; stop and resume."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -170,17 +171,21 @@ def test_prune_drops_what_the_seams_made_redundant():
 
     for f in (sensor(0, [0, 1, 2, 3]), sensor(10, [2, 3]), sensor(20, [3, 4, 5])):
         solution.fix(FixedSensor(f.pose, 0.0, 0, 0, newly_covered(solution, f.seen), f.seen))
-    assert parts_module.prune(problem, solution, 0) == 1
+    assert parts_module.prune(problem, solution) == 1
     assert [f.pose.x for f in solution.sensors] == [0, 20]
     assert solution.counts.tolist() == [1, 1, 1, 2, 1, 1] and solution.n_covered == 6
     assert solution.sensors[1].newly.tolist() == [4, 5]
-    # Sensors fixed before ``first`` (another run's) are never dropped.
-    solution.fix(
-        FixedSensor(SensorPose(30, 0, 5, 5, 10, 0), 0.0, 0, 0, np.zeros(0, np.int64), np.array([0]))
-    )
-    assert parts_module.prune(problem, solution, 3) == 0 and len(solution.sensors) == 3
-    assert parts_module.prune(problem, solution, 2) == 1 and len(solution.sensors) == 2
-    assert parts_module.prune(problem, solution, 0) == 0
+    # A sensor that stood already is never dropped, though the goal does not need it.
+    standing = FixedSensor(
+        SensorPose(30, 0, 5, 5, 10, 0), 0.0, 0, 0, np.zeros(0, np.int64), np.array([0]),
+        existing=True,
+    )  # fmt: skip
+    solution.fix(standing)
+    assert parts_module.prune(problem, solution) == 0 and len(solution.sensors) == 3
+    # A planned one as redundant goes.
+    solution.fix(replace(standing, existing=False, pose=replace(standing.pose, x=40)))
+    assert parts_module.prune(problem, solution) == 1
+    assert [f.pose.x for f in solution.sensors] == [0, 20, 30]
 
 
 @pytest.mark.parametrize("whole", [True, False])
@@ -215,3 +220,31 @@ def test_past_the_time_limit_every_part_is_still_planned(small_parts):
     counts = recount(road(), res)
     assert np.count_nonzero(counts >= 1) >= math.ceil(0.9 * len(counts))
     assert 0 <= res.metrics["lower_bound"] <= res.metrics["cost"]
+
+
+def test_resuming_a_finished_run_prunes_again_to_the_same_plan(small_parts, monkeypatch):
+    """A run in parts whose seams left a sensor redundant drops it at the end, but its
+    checkpoint holds every sensor as it was fixed: resumed from those records, the run
+    drops the same ones and ends with the same plan."""
+    s = settings(rho=0.9)
+    records: list[dict] = []
+    first = Run(road(), box_caster(WALL), PAPER_CAMERA, s, on_fixed=records.append).result()
+    if len(records) == len(first.sensors):  # no seam left one over: make one redundant
+        real = parts_module.in_gain_order
+
+        def with_a_spare(inst, chosen):  # the first part's plan takes one more sensor
+            spare = [c for c in range(inst.matrix.shape[0]) if c not in chosen][:1]
+            return real(inst, list(chosen) + spare)
+
+        monkeypatch.setattr(parts_module, "in_gain_order", with_a_spare)
+        records.clear()
+        first = Run(road(), box_caster(WALL), PAPER_CAMERA, s, on_fixed=records.append).result()
+        monkeypatch.setattr(parts_module, "in_gain_order", real)
+    assert len(records) > len(first.sensors)  # the checkpoint holds the dropped ones too
+    resumed = Run(road(), box_caster(WALL), PAPER_CAMERA, s, resume=records).result()
+
+    def poses(res):
+        return [(f.x, f.y, f.pitch_deg, f.yaw_deg) for f in res.sensors]
+
+    assert poses(resumed) == poses(first)
+    assert resumed.metrics["coverage_fraction"] == first.metrics["coverage_fraction"] >= 0.9

@@ -224,11 +224,13 @@ def whole_bound(
     )
 
 
-def prune(problem: Problem, solution: Solution, first: int) -> int:
-    """Drop sensors fixed from index ``first`` on (this run's) that the goal does not
-    need, the least useful first (fewest points only it holds to their k; a sensor
-    alone on its mast before one that shares it), and fix the rest again in order.
-    Returns how many were dropped."""
+def prune(problem: Problem, solution: Solution) -> int:
+    """Drop the planned sensors (not those that stood already, ``existing``) that the
+    goal does not need, the least useful first (fewest points only it holds to their
+    k; a sensor alone on its mast before one that shares it), and fix the rest again
+    in order. Returns how many were dropped. A resumed run's sensors, read back from
+    the checkpoint, are planned ones too: pruned again, the same ones go, and a resume
+    ends with the plan the run it resumes would have ended with."""
     assert solution.need is not None
     sensors = solution.sensors
     counts = solution.counts.copy()
@@ -244,7 +246,8 @@ def prune(problem: Problem, solution: Solution, first: int) -> int:
         ords = seen(sensors[i])
         return int(np.count_nonzero(counts[ords] == need[ords]))
 
-    order = sorted(range(first, len(sensors)), key=lambda i: (held(i), per_mast[at[i]], i))
+    planned = [i for i, f in enumerate(sensors) if not f.existing]
+    order = sorted(planned, key=lambda i: (held(i), per_mast[at[i]], i))
     dropped = set()
     for i in order:
         lost = held(i)
@@ -466,7 +469,7 @@ def solve_in_parts(
             yield where(solution.progress("search", rho), k, "part done", finished=True)
     finally:
         builder.close()
-    dropped = prune(problem, solution, first)
+    dropped = prune(problem, solution)
     solution.bound = bound_now()
     if problem.reached(solution.n_covered):
         solution.stop_reason = StopReason.reached(rho, early=stopped or late())
