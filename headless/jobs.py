@@ -26,7 +26,7 @@ from autoscoop_blender.core.run import Run
 from autoscoop_blender.core.settings import CoverageSettings, OptimizeSettings, flag_values
 from autoscoop_blender.io.config import load_config
 from autoscoop_blender.io.figure import render_png
-from autoscoop_blender.io.progress_text import number
+from autoscoop_blender.io.progress_text import duration, number
 from autoscoop_blender.io.reports import (
     POINTS_HEADER,
     coverage_dict,
@@ -154,7 +154,7 @@ def optimize(args: argparse.Namespace) -> int:
         est = run.problem.estimate
         limit = ""
         if settings.optimizer == "lp":
-            limit = f"; time limit {time_limit(settings, est.parts):g} s"
+            limit = f"; {time_text(est.build_s, time_limit(settings, est.parts))}"
         print(f"estimate: {estimate_text(est)}{limit}", file=sys.stderr, flush=True)
         preload_figure()
         bar = ProgressBar(t0=run.t0)
@@ -249,6 +249,15 @@ def estimate_text(est: Estimate) -> str:
         what.append(f"{est.workers} processes")
     peak = f"peak ~{bytes_text(est.peak_bytes)} (at the {est.peak_stage} stage)"
     return f"{peak} for {', '.join(what)}"
+
+
+def time_text(build_s: float, limit_s: float) -> str:
+    """How long an lp run takes: its candidates (``Estimate.build_s``), then its search
+    until its plan is done, within its time limit."""
+    return (
+        f"time: candidates ~{duration(build_s)} of one core, the whole run at most "
+        f"{duration(limit_s)} (its time limit)"
+    )
 
 
 def stopped_text(result: Result, out_dir: Path, render: bool) -> str:

@@ -138,6 +138,12 @@ PART_NONZEROS = 100_000_000
 PART_IMBALANCE = 1.5
 # The most parts a run is let go ahead with: a square kilometre at 1 m is about 50.
 MAX_PARTS = 64
+# Seconds of one core to build the candidate set, per estimated nonzero (dominated
+# candidates included), measured 2026-11-25 on this project's 2-core machine: two_routes
+# 43.0 M in 11.3 s, a part of Town04 in 23.5 s. A ground in parts builds the positions
+# near the parts' borders once for each part they reach: PART_OVERLAP more.
+BUILD_S_PER_NONZERO = 0.3e-6
+PART_OVERLAP = 1.2
 # An ES worker process before its grid and cache: a spawned interpreter with bpy,
 # numpy, scipy and shapely imported and the caster built (measured 373 MiB on
 # two_routes at 0.5 m, less its 19 MiB grid). Each worker then rebuilds the grid and
@@ -208,6 +214,13 @@ class Estimate:
     def stage_bytes(self, stage: str) -> int:
         """Peak bytes of one stage (0 when the run has no such stage)."""
         return dict(self.stages).get(stage, 0)
+
+    @property
+    def build_s(self) -> float:
+        """Seconds to build the candidate set (0 without one), on one core of a machine
+        like this project's (``BUILD_S_PER_NONZERO``)."""
+        overlap = PART_OVERLAP if self.parts > 1 else 1.0
+        return self.nonzeros * BUILD_S_PER_NONZERO * overlap
 
 
 # --- the machine -------------------------------------------------------------------------

@@ -19,7 +19,7 @@ import pytest
 from autoscoop_blender.core.budget import Estimate
 from autoscoop_blender.core.optimize.base import Progress
 from autoscoop_blender.io.progress_text import duration, gap, progress_text
-from headless.jobs import estimate_text
+from headless.jobs import estimate_text, time_text
 from headless.progress import LOG_INTERVAL_S, ProgressBar
 from tests.conftest import ROOT
 
@@ -170,6 +170,12 @@ def test_the_estimate_line_says_what_the_estimate_holds():
     assert estimate_text(est) == (
         "peak ~1.7 GiB (at the optimizer stage) for lp, 16,555 target points, 665 mast "
         "positions x 216 orientations, ~40.9 M candidate matrix entries, in 3 parts"
+    )
+    # The candidates at 0.3 s of a core per million entries, 1.2 x in parts (borders
+    # built twice): 40.9 M -> 14.7 s.
+    assert est.build_s == pytest.approx(40.9 * 0.3 * 1.2)
+    assert time_text(est.build_s, 720.0) == (
+        "time: candidates ~15 s of one core, the whole run at most 12 min 00 s (its time limit)"
     )
     es = replace(est, optimizer="es", orientations=0, nonzeros=0, parts=1, peak_stage="workers")
     assert estimate_text(es) == (
