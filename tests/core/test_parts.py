@@ -248,3 +248,52 @@ def test_resuming_a_finished_run_prunes_again_to_the_same_plan(small_parts, monk
 
     assert poses(resumed) == poses(first)
     assert resumed.metrics["coverage_fraction"] == first.metrics["coverage_fraction"] >= 0.9
+
+
+def test_a_masts_lp_cut_short_still_proves_most_of_its_value(small_parts, monkeypatch):
+    """A part's masts LP whose interior point solve gives nothing (cut by its limit):
+    the dual steps still prove a line, at most the LP's value and at least 90 % of it
+    at the part's goal (the LP solved to its end on the same part gives the value)."""
+    problem = Problem(road(), box_caster(WALL)(), PAPER_CAMERA, settings())
+    points = np.flatnonzero(parts_of(problem.grid.target_xy, 3) == 1)
+    part = drain(build_part(problem, points, PAPER_CAMERA.range_m))
+    no = np.zeros(0, dtype=np.int64)
+    inst, _ = parts_module.split_instance(
+        part.cands, points, np.zeros(problem.n_targets, bool),
+        np.zeros(problem.n_targets, np.int32), problem.need, problem.grid.target_xy, 4, no,
+    )  # fmt: skip
+    inst = replace(inst, goal=math.ceil(0.9 * len(points)))
+    standing = problem.space.standing
+
+    def at_goal(line):
+        return line[0] * inst.goal - line[1]
+
+    solved, _, _ = drain(parts_module.site_line(inst, part, standing, None, None))
+    real = parts_module.cover_lp
+    value = drain(real(*_site_lp_args(inst, part, standing))).value
+
+    def nothing(*args, **kwargs):
+        lp = yield from real(*args, **kwargs)
+        return replace(lp, x=np.zeros(0), slope=0.0, intercept=0.0)
+
+    monkeypatch.setattr(parts_module, "cover_lp", nothing)
+    cut, _, sites = drain(parts_module.site_line(inst, part, standing, None, None))
+    assert 0.9 * value <= at_goal(cut) <= value + 1e-6
+    assert at_goal(solved) <= value + 1e-6 and len(sites) > 0
+
+
+def _site_lp_args(inst, part, standing):
+    """The masts LP of ``site_line``, solved to its end (the simplex)."""
+    from scipy import sparse
+
+    from autoscoop_blender.core.optimize.cover import CoverInstance
+
+    col = np.searchsorted(part.sites, part.cands.position)
+    pick = sparse.csr_matrix(
+        (np.ones(len(col)), (col, np.arange(len(col)))), shape=(len(part.sites), len(col))
+    )
+    sites = (pick @ inst.matrix.astype(np.float64)).tocsr()
+    sites.data[:] = 1.0
+    cost = np.where(standing[part.sites], 0.0, part.site_share)
+    every = np.arange(len(part.sites), dtype=np.int64)
+    return CoverInstance(sites, inst.goal, need=inst.k), cost, every, every, 50, False
