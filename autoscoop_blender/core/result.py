@@ -20,7 +20,8 @@ import numpy as np
 import shapely
 import shapely.affinity
 from numpy.typing import NDArray
-from scipy import ndimage
+from scipy import sparse
+from scipy.sparse import csgraph
 from shapely.geometry import Polygon
 from shapely.geometry.base import BaseGeometry
 
@@ -455,17 +456,41 @@ def uncovered_parts(
 ) -> list[dict[str, Any]]:
     """Connected patches of uncovered target points (8-neighbour), largest first.
 
-    Each: the target area's name, m^2, and the patch centroid in world x, y.
+    Each: the target area's name, m^2, and the patch centroid in world x, y. Patches
+    are found among the uncovered points alone (a graph of their neighbours), never
+    on a raster of the ground; numbered, as ``ndimage.label`` numbers them, by their
+    first cell in the lattice's order, which orders patches of equal m^2.
     """
     if not uncovered.any():
         return []
-    mask = np.zeros(grid.nx * grid.ny, dtype=bool)
-    mask[grid.target_cells[uncovered]] = True
-    labels, count = ndimage.label(mask.reshape(grid.nx, grid.ny), structure=np.ones((3, 3)))
-    flat = labels.ravel()[grid.target_cells]
+    cells = grid.target_cells[uncovered]  # sorted
+    i, j = np.divmod(cells, grid.ny)
+    # Each point's neighbours later in the lattice's order: the three on the next row
+    # and the next one on its own row.
+    links = []
+    for di, dj in ((0, 1), (1, -1), (1, 0), (1, 1)):
+        ok = (j + dj >= 0) & (j + dj < grid.ny) & (i + di < grid.nx)
+        other = cells + di * grid.ny + dj
+        at = np.minimum(np.searchsorted(cells, other), len(cells) - 1)
+        ok &= cells[at] == other
+        links.append((np.flatnonzero(ok), at[ok]))
+    a = np.concatenate([p for p, _ in links])
+    b = np.concatenate([q for _, q in links])
+    n = len(cells)
+    graph = sparse.coo_matrix((np.ones(len(a), dtype=np.int8), (a, b)), shape=(n, n))
+    count, found = csgraph.connected_components(graph, directed=False)
+    # Number the patches by their first point (points are in the lattice's order).
+    first = np.full(count, n)
+    np.minimum.at(first, found, np.arange(n))
+    rank = np.empty(count, dtype=np.int64)
+    rank[np.argsort(first)] = np.arange(count)
+    label = rank[found]
+    # Each patch's members: indices into the target arrays, ascending.
+    members_of = np.flatnonzero(uncovered)[np.argsort(label, kind="stable")]
+    bounds = np.searchsorted(np.sort(label), np.arange(count + 1))
     parts: list[dict[str, Any]] = []
-    for k in range(1, count + 1):
-        members = np.flatnonzero(flat == k)
+    for k in range(count):
+        members = members_of[bounds[k] : bounds[k + 1]]
         m2 = len(members) * grid.cell_area
         if m2 < min_m2:
             continue

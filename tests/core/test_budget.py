@@ -18,6 +18,7 @@ from autoscoop_blender.core.model.sensors import PAPER_CAMERA, ROADSIDE_LIDAR, T
 from autoscoop_blender.core.problem import Problem, run_estimate
 from autoscoop_blender.core.settings import OptimizeSettings
 from tests.core.flat import flat_scene
+from tests.core.test_grid_held import held_chunks_by_hand
 from tests.core.test_lp import drain
 
 GIB = 1 << 30
@@ -39,12 +40,24 @@ def test_grid_counts_are_arithmetic():
     # Areas' bounds (0, 0)-(24, 10); at g = 0.5 with an 80 m reach the lattice pads
     # 80 + 2 g = 81 m on each side: x from -81 over 24 + 162 m, y over 10 + 162 m.
     est = budget.estimate_grid(hand_scene(), 0.5, 80.0)
-    assert est.grid_cells == (186 * 2) * (172 * 2) == 127_968
+    nx, ny = 186 * 2, 172 * 2
+    # Tiles of 32 x 32 cells (16 m) from (-81, -81): the 12 x 11 tiles but 15 near the
+    # corners whose ground is farther than 80 m from both boxes: (0, 0), (0, 1),
+    # (1, 0) at the bottom left (91.9, 81.4, 81.4 m from the target's corner), (0, 9),
+    # (0, 10), (1, 10) at the top left, (10, 0), (11, 0), (11, 1) at the bottom right
+    # (85.1 m and more from the sensor area), (9, 10), (10, 9), (10, 10), (11, 8),
+    # (11, 9), (11, 10) at the top right (80.7 m and more), held in chunks of 64
+    # consecutive flat indices (counted on a dense mask).
+    assert held_chunks_by_hand(hand_scene(), (-81.0, -81.0, nx, ny), 0.5, 80.0) == 1921
+    assert est.grid_cells == 1921 * 64 == 122_944
     assert est.target_points == (10 * 2) ** 2 == 400
     assert est.disk_cells == math.ceil(math.pi * 80**2 / 0.5**2) == 80_425
     # A full evaluation drops every cell in reach and may cast a sight ray to each.
     assert est.rays_per_evaluation == 2 * est.disk_cells
-    assert est.grid_bytes == 127_968 * budget.GRID_CELL_BYTES + 400 * budget.TARGET_POINT_BYTES
+    # The slot table: one int32 per 64 cells of the whole lattice.
+    table = math.ceil(nx * ny / 64) * 4
+    per_point = budget.TARGET_POINT_BYTES + budget.TARGET_TREE_BYTES
+    assert est.grid_bytes == 122_944 * budget.GRID_CELL_BYTES + table + 400 * per_point
     # The reference footprint's flat grid: (2 x 80 + 2 x 2 x 0.5) / 0.5 cells a side.
     assert budget.reference_cells(80.0, 0.5) == 324**2
 
@@ -54,11 +67,12 @@ def test_grid_counts_match_the_grid_built():
     for g in (0.5, 1.0, 2.0):
         est = budget.estimate_grid(scene, g, 80.0)
         grid = GroundGrid(scene, BoxCaster(ground_z=0.0), g, reach_m=80.0)
-        assert est.grid_cells == grid.nx * grid.ny
+        assert est.grid_cells == grid.held_cells
         assert est.target_points == grid.n_targets
         a = grid.arrays()
         resident = a.dist.nbytes + a.z.nbytes + a.normal.nbytes + grid._target_ordinal.nbytes
         assert resident == est.grid_cells * budget.GRID_CELL_BYTES
+        assert a.chunk_offset.nbytes == budget.chunk_count(grid.nx, grid.ny) * 4
 
 
 def test_run_counts_match_the_problem_and_its_candidates():
@@ -199,7 +213,7 @@ def test_default_runs_pass():
         est = problem.estimate
         assert budget.verdict(est) is None
         assert est.peak_bytes < 0.5 * GIB
-        assert est.grid_cells == problem.grid.nx * problem.grid.ny
+        assert est.grid_cells == problem.grid.held_cells
 
 
 def test_a_matrix_that_outgrows_its_estimate_stops_the_build(monkeypatch):
