@@ -420,8 +420,8 @@ class OptimizeSettings(CoverageSettings):
     time_limit_s: float | None = knob(
         None,
         "lp: end the run after at most this many seconds with the best plan by then and "
-        "its proven gap (default: 240 s for each part of the ground of up to 20,000 "
-        "target points)",
+        "its proven gap (default: 240 s for a ground planned whole, 150 s for each part of "
+        "a ground planned in parts of up to 20,000 target points)",
         lo=0.0,
         lo_open=True,
         flag="--time-limit",

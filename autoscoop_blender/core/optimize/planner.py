@@ -13,9 +13,14 @@ from .base import Progress, Solution
 from .lp import solve_whole
 from .parts import PartBuilder, part_count, solve_in_parts
 
-# The default time budget, per part of the ground (``budget.part_count``): two_routes
-# plans in 84-88 s, well within it; with k = 2 it ends within 5 minutes.
-DEFAULT_LIMIT_S_PER_PART = 240.0
+# The default time budget: a ground planned whole gets DEFAULT_LIMIT_S (two_routes
+# plans in about 2 minutes, within it; with k = 2 it ends within 5 minutes); one in
+# parts (``budget.part_count``) DEFAULT_LIMIT_S_PER_PART a part, at least
+# DEFAULT_LIMIT_S. A part's candidates take 25-40 s and its LPs' bound is within 5-7 %
+# of their value after 100 s more (Town04, 2026-11-25): 150 s a part plans Town04 (8
+# parts) in 20 minutes and 12 tiles of full_ground (10 parts) in 25.
+DEFAULT_LIMIT_S = 240.0
+DEFAULT_LIMIT_S_PER_PART = 150.0
 # Of a time limit, what is kept for the work after the search (fixing the plan's
 # sensors, masts, the report): two_routes' took 4 s.
 FINISH_SHARE = 0.05
@@ -23,11 +28,13 @@ FINISH_MIN_S = 3.0
 
 
 def time_limit(settings: OptimizeSettings, n_parts: int) -> float:
-    """The run's time limit, s: ``time_limit_s``, else the default budget of
-    ``DEFAULT_LIMIT_S_PER_PART`` a part."""
+    """The run's time limit, s: ``time_limit_s``, else the default budget
+    (``DEFAULT_LIMIT_S``, or ``DEFAULT_LIMIT_S_PER_PART`` a part)."""
     if settings.time_limit_s is not None:
         return settings.time_limit_s
-    return DEFAULT_LIMIT_S_PER_PART * n_parts
+    if n_parts == 1:
+        return DEFAULT_LIMIT_S
+    return max(DEFAULT_LIMIT_S, DEFAULT_LIMIT_S_PER_PART * n_parts)
 
 
 def search_deadline(t0: float, limit_s: float) -> float:
