@@ -420,7 +420,7 @@ class OptimizeSettings(CoverageSettings):
     time_limit_s: float | None = knob(
         None,
         "lp: end the run after at most this many seconds with the best plan by then and "
-        "its proven gap (default: 240 s for a ground planned whole, 150 s for each part of "
+        "its proven gap (default: 240 s for a ground planned whole, 210 s for each part of "
         "a ground planned in parts of up to 20,000 target points)",
         lo=0.0,
         lo_open=True,

@@ -71,6 +71,19 @@ def box_caster(boxes=(), ground_z=0.0):
     return partial(BoxCaster, list(boxes), ground_z=ground_z)
 
 
+def areas_scene(targets, sensors, boxes=()):
+    """A SceneModel of polygon targets and sensor areas (named by their order) and
+    axis-aligned box occluders [(lo, hi)]."""
+    vertices, faces = box_mesh(list(boxes))
+    return SceneModel(
+        vertices=vertices,
+        faces=faces,
+        occluders=tuple(f"Box{k}" for k in range(len(boxes))),
+        targets=tuple(Area(f"Target_{k}", g) for k, g in enumerate(targets)),
+        sensor_areas=tuple(Area(f"SensorArea_{k}", g) for k, g in enumerate(sensors)),
+    )
+
+
 def open_scene(target, sensors):
     """A SceneModel with no occluder: one target geometry, sensor-area geometries."""
     return SceneModel(

@@ -13,24 +13,11 @@ from autoscoop_blender.core import budget
 from autoscoop_blender.core.coverage.targeted import TargetedEvaluator
 from autoscoop_blender.core.geom.grid import GroundGrid
 from autoscoop_blender.core.geom.raycast import BoxCaster
-from autoscoop_blender.core.model.scene import Area, SceneModel
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA, SensorPose
 from autoscoop_blender.core.result import uncovered_parts
-from tests.core.flat import box_mesh
+from tests.core.flat import areas_scene
 
 TILE, CHUNK = 32, 64  # lattice cells a tile side, flat indices a chunk
-
-
-def scene_of(targets, sensors, boxes=()):
-    """A SceneModel of polygon targets and sensor areas (in order) and box occluders."""
-    vertices, faces = box_mesh(list(boxes))
-    return SceneModel(
-        vertices=vertices,
-        faces=faces,
-        occluders=tuple(f"Box{k}" for k in range(len(boxes))),
-        targets=tuple(Area(f"Target{k}", g) for k, g in enumerate(targets)),
-        sensor_areas=tuple(Area(f"SensorArea{k}", g) for k, g in enumerate(sensors)),
-    )
 
 
 def held_mask_by_hand(scene, lattice, g, reach):
@@ -81,7 +68,7 @@ MAST_A, MAST_B = shapely.box(8, 8, 12, 12), shapely.box(5008, 8, 5012, 12)
 
 
 def test_two_far_squares_hold_a_small_fraction_of_their_bounds():
-    scene = scene_of([SQUARE_A, SQUARE_B], [MAST_A, MAST_B])
+    scene = areas_scene([SQUARE_A, SQUARE_B], [MAST_A, MAST_B])
     grid = GroundGrid(scene, BoxCaster(ground_z=0.0), 1.0, reach_m=80.0)
     # Bounds (0, 0)-(5020, 20) padded by 80 + 2 m: x0 = y0 = -82, 5184 x 184 cells.
     assert (grid.x0, grid.y0, grid.nx, grid.ny) == (-82.0, -82.0, 5184, 184)
@@ -117,7 +104,7 @@ REACH = 30.0
 
 
 def small_scene():
-    return scene_of([SLANTED, OVERLAP], [SENSOR], boxes=[BLOCK])
+    return areas_scene([SLANTED, OVERLAP], [SENSOR], boxes=[BLOCK])
 
 
 class DenseReference:
@@ -203,12 +190,12 @@ def test_every_answer_is_the_dense_grids():
 def test_a_footprint_does_not_depend_on_the_other_square():
     # Near each square, a sensor covers the same points and the same ground outside
     # the target whether the other square, 5 km away, is in the scene or not.
-    both = scene_of([SQUARE_A, SQUARE_B], [MAST_A, MAST_B])
+    both = areas_scene([SQUARE_A, SQUARE_B], [MAST_A, MAST_B])
     caster = BoxCaster(ground_z=0.0)
     far = TargetedEvaluator(GroundGrid(both, caster, 1.0, reach_m=80.0), caster)
     for square, mast, x in ((SQUARE_A, MAST_A, 10.0), (SQUARE_B, MAST_B, 5010.0)):
         alone = TargetedEvaluator(
-            GroundGrid(scene_of([square], [mast]), caster, 1.0, reach_m=80.0), caster
+            GroundGrid(areas_scene([square], [mast]), caster, 1.0, reach_m=80.0), caster
         )
         for pitch, yaw in ((30.0, 0.0), (45.0, 120.0), (60.0, 250.0)):
             pose = SensorPose(x, 10.0, 6.0, 6.0, pitch, yaw)

@@ -9,7 +9,6 @@ import pytest
 import shapely
 from scipy import sparse
 
-from autoscoop_blender.core.model.scene import Area, SceneModel
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA
 from autoscoop_blender.core.optimize import lp as lp_module
 from autoscoop_blender.core.optimize.bound import (
@@ -33,7 +32,7 @@ from autoscoop_blender.core.optimize.cover import (
 )
 from autoscoop_blender.core.run import Run
 from autoscoop_blender.core.settings import OptimizeSettings
-from tests.core.flat import box_caster, box_mesh
+from tests.core.flat import areas_scene, box_caster
 
 LP = OptimizeSettings(optimizer="lp", rho=0.9)
 
@@ -568,24 +567,13 @@ def test_closing_a_site_completes_per_cost():
     assert sorted(got.chosen) == [0, 3]
 
 
-def _scene(targets, areas, boxes=()):
-    vertices, faces = box_mesh(list(boxes))
-    return SceneModel(
-        vertices=vertices,
-        faces=faces,
-        occluders=tuple(f"Box{k}" for k in range(len(boxes))),
-        targets=tuple(Area(f"Target_{k}", g) for k, g in enumerate(targets)),
-        sensor_areas=tuple(Area(f"SensorArea_{k}", g) for k, g in enumerate(areas)),
-    )
-
-
 def test_three_disjoint_strips_need_three_sensors():
     """Three 10 x 4 m strips 300 m apart, each with a sensor area beside it: no sensor
     sees two, one sees a whole strip; so 3 sensors on 3 masts, and the bound is 3."""
     strips = [shapely.box(300 * k, 0, 300 * k + 10, 4) for k in range(3)]
     areas = [shapely.box(300 * k, 14, 300 * k + 10, 18) for k in range(3)]
     settings = replace(LP, rho=1.0, objective="sensors")
-    res = Run(_scene(strips, areas), box_caster(), PAPER_CAMERA, settings).result()
+    res = Run(areas_scene(strips, areas), box_caster(), PAPER_CAMERA, settings).result()
     m = res.metrics
     assert m["coverage_fraction"] == 1.0
     assert m["sensors"] == 3 and m["sensors_lower_bound"] == 3 and m["gap"] == 0.0
@@ -600,7 +588,7 @@ def test_two_sensors_on_one_mast_beat_two_masts():
     south = shapely.box(-6, -20, 6, -12)
     area = shapely.box(-1, -1, 1, 1)
     res = Run(
-        _scene([north, south], [area]), box_caster(), PAPER_CAMERA, replace(LP, rho=1.0)
+        areas_scene([north, south], [area]), box_caster(), PAPER_CAMERA, replace(LP, rho=1.0)
     ).result()
     m = res.metrics
     assert m["coverage_fraction"] == 1.0
@@ -615,7 +603,7 @@ def test_a_target_only_one_position_sees():
     target = shapely.box(-5, 10, 5, 16)
     strip = shapely.box(-60, -5, 60, -3)
     wall = [((-80.0, -1.0, 0.0), (-0.5, -0.6, 20.0)), ((0.5, -1.0, 0.0), (80.0, -0.6, 20.0))]
-    scene = _scene([target], [strip], wall)
+    scene = areas_scene([target], [strip], wall)
     settings = replace(LP, rho=0.3, objective="sensors")
     run = Run(scene, box_caster(wall), PAPER_CAMERA, settings)
     res = run.result()
@@ -627,7 +615,7 @@ def test_a_target_only_one_position_sees():
 
 
 def test_same_settings_same_plan():
-    scene = _scene([shapely.box(0, -7, 60, 7)], [shapely.box(0, 10, 60, 14)])
+    scene = areas_scene([shapely.box(0, -7, 60, 7)], [shapely.box(0, 10, 60, 14)])
     runs = [Run(scene, box_caster(), PAPER_CAMERA, LP).result() for _ in range(2)]
     assert [(s.x, s.y, s.pitch_deg, s.yaw_deg) for s in runs[0].sensors] == [
         (s.x, s.y, s.pitch_deg, s.yaw_deg) for s in runs[1].sensors
@@ -637,7 +625,7 @@ def test_same_settings_same_plan():
 
 
 def test_other_optimizers_get_the_bound_when_asked():
-    scene = _scene([shapely.box(0, -7, 60, 7)], [shapely.box(0, 10, 60, 14)])
+    scene = areas_scene([shapely.box(0, -7, 60, 7)], [shapely.box(0, 10, 60, 14)])
     fast_es = replace(LP, optimizer="es", es=replace(LP.es, mu=8, lam=4, max_epochs=4))
     for settings in (replace(LP, optimizer="greedy"), fast_es):
         plain = Run(scene, box_caster(), PAPER_CAMERA, settings).result().metrics
@@ -653,7 +641,7 @@ def test_stopping_early_keeps_the_best_plan_and_a_proven_bound():
     operator's Esc), the lp optimizer ends its search at once and still places a plan
     that reaches the goal, with the bound proven so far (0 if none yet) below it. (A
     stop while they are built drops them: ``test_parts``.)"""
-    scene = _scene([shapely.box(0, -7, 100, 7)], [shapely.box(0, 10, 100, 14)])
+    scene = areas_scene([shapely.box(0, -7, 100, 7)], [shapely.box(0, 10, 100, 14)])
     run = Run(scene, box_caster(), PAPER_CAMERA, LP)
     for progress in run.steps():
         if progress.phase == "search" and progress.stage != "candidates":

@@ -16,11 +16,11 @@ from .parts import PartBuilder, part_count, solve_in_parts
 # The default time budget: a ground planned whole gets DEFAULT_LIMIT_S (two_routes
 # plans in about 2 minutes, within it; with k = 2 it ends within 5 minutes); one in
 # parts (``budget.part_count``) DEFAULT_LIMIT_S_PER_PART a part, at least
-# DEFAULT_LIMIT_S. A part's candidates take 25-40 s and its LPs' bound is within 5-7 %
-# of their value after 100 s more (Town04, 2026-11-25): 150 s a part plans Town04 (8
-# parts) in 20 minutes and 12 tiles of full_ground (10 parts) in 25.
+# DEFAULT_LIMIT_S. Six tiles of full_ground (5 parts, 2026-11-26): 150 s a part gave
+# cost 502, 240 s gave 456 (bound 334), each part's mast-aware MILP being what the
+# time buys; 210 s plans Town04 (8 parts) within 30 minutes.
 DEFAULT_LIMIT_S = 240.0
-DEFAULT_LIMIT_S_PER_PART = 150.0
+DEFAULT_LIMIT_S_PER_PART = 210.0
 # Of a time limit, what is kept for the work after the search (fixing the plan's
 # sensors, masts, the report): two_routes' took 4 s.
 FINISH_SHARE = 0.05
