@@ -102,6 +102,49 @@ def test_combined_bound_fills_the_cheapest_slope_first_in_any_order():
     assert combined_bound([(2.0, 0.0), (1.0, 2.0)], [5, 5], 6) == pytest.approx(5.0)
 
 
+def test_combined_bound_with_more_lines_a_part_is_their_upper_envelope():
+    """Goal 15 of two parts. Part 1: 0.5 g - 2 on its 5 points (free up to 4, 0.5 for
+    the fifth). Part 0 on 10 points by its tangent g - 5 alone: free up to 5, then 1 a
+    point, so it takes the 6 left at 1 each less the fifth point of part 1 (0.5):
+    5 + 0.5. With a second line 3 g - 22, steeper near all it covers (it passes g - 5
+    at 8.5): 3.5 points at 1 and 1.5 at 3, 8 + 0.5. With room for 10 in part 1 the
+    cheaper 0.5 takes the 6: 3, the second line unused."""
+    tangent, near_all, other = (1.0, 5.0), (3.0, 22.0), (0.5, 2.0)
+    assert combined_bound([[tangent], [other]], [10, 5], 15) == pytest.approx(5.5)
+    assert combined_bound([[tangent, near_all], [other]], [10, 5], 15) == pytest.approx(8.5)
+    assert combined_bound([[tangent, near_all], [other]], [10, 10], 15) == pytest.approx(3.0)
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_combined_bound_is_the_least_total_the_lp_finds(seed):
+    """Random parts with 1-3 lines each: the least total over the splits of the goal,
+    as an LP (each part's value above each of its lines and 0, its goal within what
+    it can cover, the goals adding up to the whole's) solved by HiGHS, is what
+    ``combined_bound`` gives."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 5))
+    lines = [
+        [(float(rng.uniform(0, 2)), float(rng.uniform(-1, 20))) for _ in range(rng.integers(1, 4))]
+        for _ in range(n)
+    ]
+    coverable = [int(rng.integers(1, 30)) for _ in range(n)]
+    goal = int(rng.integers(0, sum(coverable) + 1))
+    # Variables: each part's goal g_k, then its value t_k.
+    rows, rhs = [], []
+    for k, mine in enumerate(lines):
+        for a, b in mine:  # a g_k - t_k <= b
+            row = np.zeros(2 * n)
+            row[k], row[n + k] = a, -1.0
+            rows.append(row)
+            rhs.append(b)
+    rows.append(np.r_[-np.ones(n), np.zeros(n)])  # sum g_k >= goal
+    rhs.append(-goal)
+    bounds = [(0, c) for c in coverable] + [(0, None)] * n
+    lp = linprog(np.r_[np.zeros(n), np.ones(n)], A_ub=np.array(rows), b_ub=rhs, bounds=bounds)
+    assert lp.status == 0
+    assert combined_bound(lines, coverable, goal) == pytest.approx(lp.fun, abs=1e-7)
+
+
 def test_the_mast_aware_milp_takes_a_candidate_once():
     """Points 0 and 1, each needed twice; A and B see both from one site, A at 1, B at
     3: A twice would cost 2 but counts once, so the plan is A and B (4 and the mast)."""

@@ -265,8 +265,8 @@ def test_a_masts_lp_cut_short_still_proves_most_of_its_value(small_parts, monkey
     inst = replace(inst, goal=math.ceil(0.9 * len(points)))
     standing = problem.space.standing
 
-    def at_goal(line):
-        return line[0] * inst.goal - line[1]
+    def at_goal(lines):
+        return max(a * inst.goal - b for a, b in lines)
 
     solved, _, _ = drain(parts_module.site_line(inst, part, standing, None, None))
     real = parts_module.cover_lp
@@ -297,3 +297,27 @@ def _site_lp_args(inst, part, standing):
     cost = np.where(standing[part.sites], 0.0, part.site_share)
     every = np.arange(len(part.sites), dtype=np.int64)
     return CoverInstance(sites, inst.goal, need=inst.k), cost, every, every, 50, False
+
+
+def test_the_masts_lps_lines_hold_at_other_goals(small_parts):
+    """A part's masts LP gives lines at its goal and at the goals either side (all it
+    can cover, and as far below): at each of those goals every line is at most the LP
+    solved there to its end (what the lines add to the whole's bound: test_bound)."""
+    problem = Problem(road(), box_caster(WALL)(), PAPER_CAMERA, settings())
+    points = np.flatnonzero(parts_of(problem.grid.target_xy, 3) == 1)
+    part = drain(build_part(problem, points, PAPER_CAMERA.range_m))
+    no = np.zeros(0, dtype=np.int64)
+    inst, _ = parts_module.split_instance(
+        part.cands, points, np.zeros(problem.n_targets, bool),
+        np.zeros(problem.n_targets, np.int32), problem.need, problem.grid.target_xy, 4, no,
+    )  # fmt: skip
+    inst = replace(inst, goal=math.ceil(0.9 * len(points)))
+    standing = problem.space.standing
+    lines, _, _ = drain(parts_module.site_line(inst, part, standing, None, None))
+    reach = parts_module.coverable(inst)
+    assert len(lines) == 3 and reach > inst.goal
+    for goal in (inst.goal, reach, 2 * inst.goal - reach):
+        at = replace(inst, goal=goal)
+        value = drain(parts_module.cover_lp(*_site_lp_args(at, part, standing))).value
+        for a, b in lines:
+            assert a * goal - b <= value + 1e-6

@@ -541,23 +541,59 @@ def parts_of(xy: F64, n_parts: int) -> I64:
     return part
 
 
-def combined_bound(lines: list[tuple[float, float]], coverable: list[int], goal: int) -> float:
+def combined_bound(
+    lines: list[tuple[float, float]] | list[list[tuple[float, float]]],
+    coverable: list[int],
+    goal: int,
+) -> float:
     """The least total of the parts' LP values over every way to split ``goal`` among
-    them, each part's value bounded below by its line (slope, intercept) and by 0,
-    its share of the goal at most what it can cover (together at least ``goal``).
-    Closed form: each part covers up to ``intercept / slope`` points for free; the
-    rest of the goal goes to the parts with the smallest slopes first. 0 when the
-    free points reach the goal."""
-    free = [min(c, b / a) if a > 0 else c for (a, b), c in zip(lines, coverable, strict=True)]
-    left = goal - sum(free)
-    total = 0.0
-    for k in sorted(range(len(lines)), key=lambda k: lines[k][0]):
+    them, each part's value bounded below by its line (slope, intercept), or by the
+    highest of its lines, and by 0; its share of the goal at most what it can cover
+    (together at least ``goal``). Each part's bound is then convex and piecewise
+    linear in its goal, 0 up to where its first line rises: the goal goes to the
+    parts' pieces with the smallest slopes first (``_pieces``). 0 when the parts cover
+    the goal at no cost."""
+    pieces, total = [], 0.0
+    for part_lines, c in zip(lines, coverable, strict=True):
+        many = part_lines if isinstance(part_lines, list) else [part_lines]
+        at_zero, more = _pieces(many, c)
+        total += at_zero
+        pieces.extend(more)
+    left = float(goal)
+    for slope, length in sorted(pieces):
         if left <= 0:
             break
-        take = min(left, coverable[k] - free[k])
-        total += lines[k][0] * take
+        take = min(left, length)
+        total += slope * take
         left -= take
     return total
+
+
+def _pieces(
+    lines: list[tuple[float, float]], coverable: float
+) -> tuple[float, list[tuple[float, float]]]:
+    """f(g) = max(0, slope g - intercept over ``lines``) for g from 0 to ``coverable``:
+    f(0), and the (slope, length) of its pieces in order (their slopes rise: f is
+    convex)."""
+    lines = [(a, b) for a, b in lines if a > 0 or b < 0] or [(0.0, 0.0)]
+    at = {0.0, float(coverable)}
+    for a, b in lines:
+        if a != 0:
+            at.add(b / a)  # where the line crosses 0
+    for (a1, b1), (a2, b2) in itertools.combinations(lines, 2):
+        if a1 != a2:
+            at.add((b1 - b2) / (a1 - a2))  # where two lines cross
+    points = sorted(g for g in at if 0.0 <= g <= coverable)
+
+    def value(g: float) -> float:
+        return max(0.0, max(a * g - b for a, b in lines))
+
+    pieces = [
+        ((value(hi) - value(lo)) / (hi - lo), hi - lo)
+        for lo, hi in itertools.pairwise(points)
+        if hi > lo
+    ]
+    return value(0.0), pieces
 
 
 T = TypeVar("T")

@@ -26,7 +26,10 @@ every split of the whole goal among the parts: a lower bound on every plan, what
 split the parts were solved at. A part not solved yet counts 0 at any goal. The same
 holds for the fewest masts, with the LP over sites (a site covers what any of its
 candidates covers; with k > 1 it adds at most min(its candidates there, k) to a
-point). The cost bound is mast_cost x masts + sensor_cost x sensors, each rounded up.
+point). A tangent at the part's goal sags below the LP away from it, and the best
+split moves goal to where the tangents are flattest; so the masts LP, whose last
+points cost the most, gives lines at the goals either side too, and each part's
+bound is the highest of its lines (still convex in its goal). The cost bound is mast_cost x masts + sensor_cost x sensors, each rounded up.
 """
 
 from __future__ import annotations
@@ -123,13 +126,14 @@ def site_line(
     standing: NDArray[np.bool_],
     deadline: float | None,
     stop: threading.Event | None,
-) -> Generator[None, None, tuple[Line, int, I64]]:
-    """The part's fewest-masts LP as a line in its goal (see the module docstring):
+) -> Generator[None, None, tuple[list[Line], int, I64]]:
+    """The part's fewest-masts LP as lines in its goal (see the module docstring):
     sites as columns at their share of one mast (0 where a mast stands), each
     covering what its candidates cover (k > 1: at most min(their count, k) a point),
     every site at once, by HiGHS' interior point method, for at most ``SITE_LP_S``
-    (cut short, its duals still bound it). Returns the line, the LP's rounds and the
-    sites (positions) the LP uses: where the part's plans look for masts."""
+    (cut short, its duals still bound it), and at the goals either side. Returns the
+    lines, the LP's rounds and the sites (positions) the LP uses: where the part's
+    plans look for masts."""
     cands = part.cands
     col = np.searchsorted(part.sites, cands.position)
     pick = sparse.csr_matrix(
@@ -165,18 +169,36 @@ def site_line(
     value, slope, intercept = polish.line()
     if value > line[0] * site_inst.goal - line[1]:
         line = (slope, intercept)
-    return line, lp.rounds, np.sort(used).astype(np.int64)
+    # A line is a tangent at the part's goal, and the whole's bound moves goal between
+    # the parts (by up to the 3 % a 97 % goal leaves); the LP is convex in its goal and
+    # steepest near all the part can cover, so lines at the goals either side of it,
+    # from the best point so far, hold the parts' bound up where the tangent sags.
+    lines = [line]
+    reach = coverable(inst)
+    if polish.center is not None and reach > site_inst.goal:
+        for goal in (reach, max(0, 2 * site_inst.goal - reach)):
+            if stop is not None and stop.is_set():
+                break
+            at = replace(site_inst, goal=goal)
+            other = DualPolish(at, cost)
+            aim = float(cost[complete(Cover(at), every, sensor_cost=cost + 1e-6).chosen].sum())
+            for _ in other.walk(*polish.center, aim, SITE_POLISH_STEPS):
+                yield None
+            lines.append(other.line()[1:])
+    return lines, lp.rounds, np.sort(used).astype(np.int64)
 
 
 def part_sites(
-    masts_lp: Generator[None, None, tuple[Line, int, I64]], before: I64, found: dict[str, Any]
+    masts_lp: Generator[None, None, tuple[list[Line], int, I64]],
+    before: I64,
+    found: dict[str, Any],
 ) -> Generator[None, None, SiteSolution]:
     """The sites a part's plans look for masts at: those its masts LP (``site_line``)
-    uses and ``before`` (the masts the parts before stood there). The LP's line and
-    rounds go into ``found`` ("line", "rounds") once it is solved."""
+    uses and ``before`` (the masts the parts before stood there). The LP's lines and
+    rounds go into ``found`` ("lines", "rounds") once it is solved."""
     t0 = time.perf_counter()
-    line, rounds, lp_sites = yield from masts_lp
-    found.update(line=line, rounds=rounds, seconds=time.perf_counter() - t0)
+    lines, rounds, lp_sites = yield from masts_lp
+    found.update(lines=lines, rounds=rounds, seconds=time.perf_counter() - t0)
     mine = np.union1d(lp_sites, before).astype(np.int64)
     return SiteSolution(0, mine[:0], mine)
 
@@ -209,15 +231,16 @@ def _standing_too(problem: Problem, sites: I64) -> Iterator[None]:
 def whole_bound(
     problem: Problem,
     sensor_lines: list[Line],
-    mast_lines: list[Line],
+    mast_lines: list[list[Line]],
     coverable: list[int],
     goal: int,
     rounds: int,
     dearest: float | None,
 ) -> PlanBound:
     """The proven bound of the whole ground from the parts' lines (module docstring).
-    dearest: with models of different costs, the dearest sensor's cost (the sensors
-    LP priced each candidate at its model's cost); None when all cost the same."""
+    mast_lines: each part's lines (the highest of them bounds it). dearest: with
+    models of different costs, the dearest sensor's cost (the sensors LP priced each
+    candidate at its model's cost); None when all cost the same."""
     lp = combined_bound(sensor_lines, coverable, goal)
     masts_lp = combined_bound(mast_lines, coverable, goal)
     if dearest is None:
@@ -339,7 +362,7 @@ def solve_in_parts(
     total_open = max(sum(open_points), 1)
     goal = max(0, problem.goal - solution.n_covered)
     sensor_lines: list[Line] = [(0.0, 0.0)] * n_parts
-    mast_lines: list[Line] = [(0.0, 0.0)] * n_parts
+    mast_lines: list[list[Line]] = [[(0.0, 0.0)]] * n_parts
     reach = list(open_points)  # what each part can cover: at most its open points
     rounds = 0
     costs = problem.sensor_costs
@@ -463,14 +486,14 @@ def solve_in_parts(
                             break
                         yield where(p, k, "solve")
                 sensor_lines[k] = (lp.slope, lp.intercept)
-                mast_lines[k] = masts_lp.get("line", (0.0, 0.0))
+                mast_lines[k] = masts_lp.get("lines", [(0.0, 0.0)])
                 rounds += lp.rounds + masts_lp.get("rounds", 0)
                 at = full.goal
                 log.info(
                     "part %d/%d: sensors LP %.2f >= %.2f at goal %d (%d rounds), masts LP "
                     "line %.2f (%.1f s), plan %d; %.1f s", k + 1, n_parts, lp.value,
                     lp.slope * at - lp.intercept, at, lp.rounds,
-                    mast_lines[k][0] * at - mast_lines[k][1], masts_lp.get("seconds", 0.0),
+                    max(a * at - b for a, b in mast_lines[k]), masts_lp.get("seconds", 0.0),
                     len(chosen), time.perf_counter() - solving,
                 )  # fmt: skip
                 for c in in_gain_order(left, chosen):
