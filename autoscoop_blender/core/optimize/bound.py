@@ -62,7 +62,7 @@ import itertools
 import math
 import threading
 import time
-from collections.abc import Generator, Iterator
+from collections.abc import Generator, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
@@ -542,7 +542,7 @@ def parts_of(xy: F64, n_parts: int) -> I64:
 
 
 def combined_bound(
-    lines: list[tuple[float, float]] | list[list[tuple[float, float]]],
+    lines: Sequence[tuple[float, float] | list[tuple[float, float]]],
     coverable: list[int],
     goal: int,
 ) -> float:
