@@ -5,6 +5,7 @@ joined plan whose coverage an independent recount confirms; stop and resume."""
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import replace
 
 import numpy as np
@@ -265,10 +266,10 @@ def test_a_masts_lp_cut_short_still_proves_most_of_its_value(small_parts, monkey
     inst = replace(inst, goal=math.ceil(0.9 * len(points)))
     standing = problem.space.standing
 
-    def at_goal(lines):
-        return max(a * inst.goal - b for a, b in lines)
+    def at_goal(line):
+        return line[0] * inst.goal - line[1]
 
-    solved, _, _ = drain(parts_module.site_line(inst, part, standing, None, None))
+    solved = drain(parts_module.site_line(inst, part, standing, None, None)).line
     real = parts_module.cover_lp
     value = drain(real(*_site_lp_args(inst, part, standing))).value
 
@@ -277,9 +278,9 @@ def test_a_masts_lp_cut_short_still_proves_most_of_its_value(small_parts, monkey
         return replace(lp, x=np.zeros(0), slope=0.0, intercept=0.0)
 
     monkeypatch.setattr(parts_module, "cover_lp", nothing)
-    cut, _, sites = drain(parts_module.site_line(inst, part, standing, None, None))
-    assert 0.9 * value <= at_goal(cut) <= value + 1e-6
-    assert at_goal(solved) <= value + 1e-6 and len(sites) > 0
+    cut = drain(parts_module.site_line(inst, part, standing, None, None))
+    assert 0.9 * value <= at_goal(cut.line) <= value + 1e-6
+    assert at_goal(solved) <= value + 1e-6 and len(cut.used) > 0
 
 
 def _site_lp_args(inst, part, standing):
@@ -313,9 +314,13 @@ def test_the_masts_lps_lines_hold_at_other_goals(small_parts):
     )  # fmt: skip
     inst = replace(inst, goal=math.ceil(0.9 * len(points)))
     standing = problem.space.standing
-    lines, _, _ = drain(parts_module.site_line(inst, part, standing, None, None))
+    lp = drain(parts_module.site_line(inst, part, standing, None, None))
     reach = parts_module.coverable(inst)
-    assert len(lines) == 3 and reach > inst.goal
+    lines = [lp.line, *drain(parts_module.either_side(lp, reach, None, None))]
+    # Past the run's deadline: one step each, lines that hold all the same.
+    late = drain(parts_module.either_side(lp, reach, time.perf_counter() - 1.0, None))
+    assert len(lines) == 3 and len(late) == 2 and reach > inst.goal
+    lines += late
     for goal in (inst.goal, reach, 2 * inst.goal - reach):
         at = replace(inst, goal=goal)
         value = drain(parts_module.cover_lp(*_site_lp_args(at, part, standing))).value

@@ -42,7 +42,7 @@ import time
 from collections.abc import Generator, Iterator
 from contextlib import contextmanager
 from dataclasses import replace
-from typing import Any, Protocol
+from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -76,7 +76,8 @@ log = logging.getLogger(__name__)
 SITE_LP_S = 90.0
 # A site is one the LP uses above this value (an interior point's values are never 0).
 SITE_USED = 1e-3
-# Dual steps on a part's masts LP (``site_line``): about 2 ms each on a part of Town04.
+# Dual steps on a part's masts LP (``site_line``, ``either_side``): 20-35 ms each on the
+# parts of six tiles of full_ground and of Town04 (2026-11-26).
 SITE_POLISH_STEPS = 1000
 
 
@@ -120,20 +121,32 @@ def coverable(inst: CoverInstance) -> int:
     return int(np.count_nonzero(seen_by >= inst.k))
 
 
+class SiteLP(NamedTuple):
+    """A part's masts LP (``site_line``): its line at the part's goal, its rounds, the
+    sites (positions) it uses, and for ``either_side``: the LP over sites (``inst``,
+    ``cost``) and the best dual point found (pi, sigma), if any."""
+
+    line: Line
+    rounds: int
+    used: I64
+    inst: CoverInstance
+    cost: F64
+    center: tuple[F64, float] | None
+
+
 def site_line(
     inst: CoverInstance,
     part: PartCandidates,
     standing: NDArray[np.bool_],
     deadline: float | None,
     stop: threading.Event | None,
-) -> Generator[None, None, tuple[list[Line], int, I64]]:
-    """The part's fewest-masts LP as lines in its goal (see the module docstring):
+) -> Generator[None, None, SiteLP]:
+    """The part's fewest-masts LP as a line in its goal (see the module docstring):
     sites as columns at their share of one mast (0 where a mast stands), each
     covering what its candidates cover (k > 1: at most min(their count, k) a point),
     every site at once, by HiGHS' interior point method, for at most ``SITE_LP_S``
-    (cut short, its duals still bound it), and at the goals either side. Returns the
-    lines, the LP's rounds and the sites (positions) the LP uses: where the part's
-    plans look for masts."""
+    (cut short, its duals still bound it). The sites the LP uses are where the
+    part's plans look for masts."""
     cands = part.cands
     col = np.searchsorted(part.sites, cands.position)
     pick = sparse.csr_matrix(
@@ -169,37 +182,50 @@ def site_line(
     value, slope, intercept = polish.line()
     if value > line[0] * site_inst.goal - line[1]:
         line = (slope, intercept)
-    # A line is a tangent at the part's goal, and the whole's bound moves goal between
-    # the parts (by up to the 3 % a 97 % goal leaves); the LP is convex in its goal and
-    # steepest near all the part can cover, so lines at the goals either side of it,
-    # from the best point so far, hold the parts' bound up where the tangent sags.
-    lines = [line]
-    reach = coverable(inst)
-    if polish.center is not None and reach > site_inst.goal:
-        for goal in (reach, max(0, 2 * site_inst.goal - reach)):
-            if stop is not None and stop.is_set():
+    used = np.sort(used).astype(np.int64)
+    return SiteLP(line, lp.rounds, used, site_inst, cost, polish.center)
+
+
+def either_side(
+    lp: SiteLP, reach: int, deadline: float | None, stop: threading.Event | None
+) -> Generator[None, None, list[Line]]:
+    """Lines of the masts LP ``lp`` at the goals either side of its own: ``reach``
+    (all the part can cover) and as far below, each by ``SITE_POLISH_STEPS`` dual
+    steps from its best point, until ``deadline`` or ``stop`` (the best line by then).
+
+    Why: a line is a tangent at the part's goal, and the whole's bound moves goal
+    between the parts (by up to the 3 % a 97 % goal leaves); the LP is convex in its
+    goal and steepest near all the part can cover, so these lines hold the parts'
+    bound up where the tangent sags (``combined_bound`` takes the highest)."""
+    lines: list[Line] = []
+    own = lp.inst.goal
+    if lp.center is None or reach <= own:
+        return lines
+    every = np.arange(len(lp.cost), dtype=np.int64)
+    for goal in (reach, max(0, 2 * own - reach)):
+        at = replace(lp.inst, goal=goal)
+        polish = DualPolish(at, lp.cost)
+        aim = float(lp.cost[complete(Cover(at), every, sensor_cost=lp.cost + 1e-6).chosen].sum())
+        for _ in polish.walk(*lp.center, aim, SITE_POLISH_STEPS):
+            if (stop is not None and stop.is_set()) or (
+                deadline is not None and time.perf_counter() > deadline
+            ):
                 break
-            at = replace(site_inst, goal=goal)
-            other = DualPolish(at, cost)
-            aim = float(cost[complete(Cover(at), every, sensor_cost=cost + 1e-6).chosen].sum())
-            for _ in other.walk(*polish.center, aim, SITE_POLISH_STEPS):
-                yield None
-            lines.append(other.line()[1:])
-    return lines, lp.rounds, np.sort(used).astype(np.int64)
+            yield None
+        lines.append(polish.line()[1:])
+    return lines
 
 
 def part_sites(
-    masts_lp: Generator[None, None, tuple[list[Line], int, I64]],
-    before: I64,
-    found: dict[str, Any],
+    masts_lp: Generator[None, None, SiteLP], before: I64, found: dict[str, Any]
 ) -> Generator[None, None, SiteSolution]:
     """The sites a part's plans look for masts at: those its masts LP (``site_line``)
-    uses and ``before`` (the masts the parts before stood there). The LP's lines and
-    rounds go into ``found`` ("lines", "rounds") once it is solved."""
+    uses and ``before`` (the masts the parts before stood there). The LP (``SiteLP``)
+    goes into ``found`` ("lp", with "seconds") once it is solved."""
     t0 = time.perf_counter()
-    lines, rounds, lp_sites = yield from masts_lp
-    found.update(lines=lines, rounds=rounds, seconds=time.perf_counter() - t0)
-    mine = np.union1d(lp_sites, before).astype(np.int64)
+    lp = yield from masts_lp
+    found.update(lp=lp, seconds=time.perf_counter() - t0)
+    mine = np.union1d(lp.used, before).astype(np.int64)
     return SiteSolution(0, mine[:0], mine)
 
 
@@ -486,8 +512,14 @@ def solve_in_parts(
                             break
                         yield where(p, k, "solve")
                 sensor_lines[k] = (lp.slope, lp.intercept)
-                mast_lines[k] = masts_lp.get("lines", [(0.0, 0.0)])
-                rounds += lp.rounds + masts_lp.get("rounds", 0)
+                site_lp: SiteLP | None = masts_lp.get("lp")
+                if site_lp is not None:
+                    # After the part's plan, which does not need them: at most until the
+                    # run's deadline (a part of Town04 took 100 s for both).
+                    more = either_side(site_lp, reach[k], deadline, stop)
+                    mast_lines[k] = [site_lp.line, *((yield from busy(more, k, "bounds")) or [])]
+                    rounds += site_lp.rounds
+                rounds += lp.rounds
                 at = full.goal
                 log.info(
                     "part %d/%d: sensors LP %.2f >= %.2f at goal %d (%d rounds), masts LP "
