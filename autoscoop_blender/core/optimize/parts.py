@@ -29,7 +29,8 @@ candidates covers; with k > 1 it adds at most min(its candidates there, k) to a
 point). A tangent at the part's goal sags below the LP away from it, and the best
 split moves goal to where the tangents are flattest; so the masts LP, whose last
 points cost the most, gives lines at the goals either side too, and each part's
-bound is the highest of its lines (still convex in its goal). The cost bound is mast_cost x masts + sensor_cost x sensors, each rounded up.
+bound is the highest of its lines (still convex in its goal). The cost bound is
+mast_cost x masts + sensor_cost x sensors, each rounded up.
 """
 
 from __future__ import annotations
@@ -199,7 +200,7 @@ def either_side(
     bound up where the tangent sags (``combined_bound`` takes the highest)."""
     lines: list[Line] = []
     own = lp.inst.goal
-    if lp.center is None or reach <= own:
+    if lp.center is None or reach <= own or (stop is not None and stop.is_set()):
         return lines
     every = np.arange(len(lp.cost), dtype=np.int64)
     for goal in (reach, max(0, 2 * own - reach)):
@@ -514,8 +515,8 @@ def solve_in_parts(
                 sensor_lines[k] = (lp.slope, lp.intercept)
                 site_lp: SiteLP | None = masts_lp.get("lp")
                 if site_lp is not None:
-                    # After the part's plan, which does not need them: at most until the
-                    # run's deadline (a part of Town04 took 100 s for both).
+                    # After the part's plan, which does not need them, and at most until
+                    # the run's deadline (on Town04 they took about 100 s of a part's 210).
                     more = either_side(site_lp, reach[k], deadline, stop)
                     mast_lines[k] = [site_lp.line, *((yield from busy(more, k, "bounds")) or [])]
                     rounds += site_lp.rounds
