@@ -251,10 +251,9 @@ def test_resuming_a_finished_run_prunes_again_to_the_same_plan(small_parts, monk
     assert resumed.metrics["coverage_fraction"] == first.metrics["coverage_fraction"] >= 0.9
 
 
-def test_a_masts_lp_cut_short_still_proves_most_of_its_value(small_parts, monkeypatch):
-    """A part's masts LP whose interior point solve gives nothing (cut by its limit):
-    the dual steps still prove a line, at most the LP's value and at least 90 % of it
-    at the part's goal (the LP solved to its end on the same part gives the value)."""
+def _middle_part():
+    """The road's middle part of 3 (nothing covered yet, goal 90 % of its points): its
+    cover instance, its candidates and where masts stand."""
     problem = Problem(road(), box_caster(WALL)(), PAPER_CAMERA, settings())
     points = np.flatnonzero(parts_of(problem.grid.target_xy, 3) == 1)
     part = drain(build_part(problem, points, PAPER_CAMERA.range_m))
@@ -263,8 +262,14 @@ def test_a_masts_lp_cut_short_still_proves_most_of_its_value(small_parts, monkey
         part.cands, points, np.zeros(problem.n_targets, bool),
         np.zeros(problem.n_targets, np.int32), problem.need, problem.grid.target_xy, 4, no,
     )  # fmt: skip
-    inst = replace(inst, goal=math.ceil(0.9 * len(points)))
-    standing = problem.space.standing
+    return replace(inst, goal=math.ceil(0.9 * len(points))), part, problem.space.standing
+
+
+def test_a_masts_lp_cut_short_still_proves_most_of_its_value(small_parts, monkeypatch):
+    """A part's masts LP whose interior point solve gives nothing (cut by its limit):
+    the dual steps still prove a line, at most the LP's value and at least 90 % of it
+    at the part's goal (the LP solved to its end on the same part gives the value)."""
+    inst, part, standing = _middle_part()
 
     def at_goal(line):
         return line[0] * inst.goal - line[1]
@@ -304,16 +309,7 @@ def test_the_masts_lps_lines_hold_at_other_goals(small_parts):
     """A part's masts LP gives lines at its goal and at the goals either side (all it
     can cover, and as far below): at each of those goals every line is at most the LP
     solved there to its end (what the lines add to the whole's bound: test_bound)."""
-    problem = Problem(road(), box_caster(WALL)(), PAPER_CAMERA, settings())
-    points = np.flatnonzero(parts_of(problem.grid.target_xy, 3) == 1)
-    part = drain(build_part(problem, points, PAPER_CAMERA.range_m))
-    no = np.zeros(0, dtype=np.int64)
-    inst, _ = parts_module.split_instance(
-        part.cands, points, np.zeros(problem.n_targets, bool),
-        np.zeros(problem.n_targets, np.int32), problem.need, problem.grid.target_xy, 4, no,
-    )  # fmt: skip
-    inst = replace(inst, goal=math.ceil(0.9 * len(points)))
-    standing = problem.space.standing
+    inst, part, standing = _middle_part()
     lp = drain(parts_module.site_line(inst, part, standing, None, None))
     reach = parts_module.coverable(inst)
     lines = [lp.line, *drain(parts_module.either_side(lp, reach, None, None))]
