@@ -867,16 +867,25 @@ def test_the_lp_optimizer_stops_fixing_at_the_goal():
 
 @pytest.mark.parametrize(
     "limit, parts, search_s",
-    [(100.0, 1, 95.0), (20.0, 1, 17.0), (None, 1, 228.0), (None, 3, 598.5), (None, 8, 1596.0)],
+    [
+        (100.0, 1, 95.0),
+        (20.0, 1, 17.0),
+        (None, 1, 228.0),
+        (None, 3, 598.5),
+        (None, 8, 1596.0),
+        (None, 10, 1596.0),
+        (None, 20, 2280.0),
+    ],
 )
 def test_the_lp_optimizer_hands_on_its_deadline_and_stop(monkeypatch, limit, parts, search_s):
     """The search ends when the run's limit (from the problem's start) less what the
     finish needs has passed: 5 % of the limit, at least 3 s; by default 240 s whole
-    and 210 s a part in parts (3 parts: 630 s, 8 parts: 1,680 s)."""
+    and 210 s a part in parts (3 parts: 630 s, 8 parts: 1,680 s), at most 1,680 s in
+    all unless that leaves a part less than 120 s (10 parts: 1,680 s, 20: 2,400 s)."""
     calls = spy(monkeypatch, "prove_and_plan")
     problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="sensors", time_limit_s=limit)
     problem.t0 -= 10.0  # the problem took 10 s to build
-    default = 240.0 if parts == 1 else 210.0 * parts
+    default = {1: 240.0, 3: 630.0, 8: 1680.0, 10: 1680.0, 20: 2400.0}[parts]
     assert planner_module.time_limit(problem.settings, parts) == (limit or default)
     planner = LPPlanner()
     res = steps(planner.solve(problem, Solution(np.zeros(7, bool))))[0]

@@ -19,8 +19,13 @@ from .parts import PartBuilder, part_count, solve_in_parts
 # DEFAULT_LIMIT_S. Six tiles of full_ground (5 parts, 2026-11-26): 150 s a part gave
 # cost 502, 240 s gave 456 (bound 334), each part's mast-aware MILP being what the
 # time buys; at 210 s a part Town04 (8 parts) planned in 27 min 18 s (2026-11-26).
+# A default run ends within DEFAULT_LIMIT_MAX_S (so within half an hour, the finish
+# included) unless that leaves a part less than DEFAULT_LIMIT_MIN_S_PER_PART: a part's
+# candidates alone take 10-45 s, and a larger ground is worth a longer run.
 DEFAULT_LIMIT_S = 240.0
 DEFAULT_LIMIT_S_PER_PART = 210.0
+DEFAULT_LIMIT_MAX_S = 1680.0
+DEFAULT_LIMIT_MIN_S_PER_PART = 120.0
 # Of a time limit, what is kept for the work after the search (fixing the plan's
 # sensors, masts, the report): two_routes' took 4 s.
 FINISH_SHARE = 0.05
@@ -29,12 +34,15 @@ FINISH_MIN_S = 3.0
 
 def time_limit(settings: OptimizeSettings, n_parts: int) -> float:
     """The run's time limit, s: ``time_limit_s``, else the default budget
-    (``DEFAULT_LIMIT_S``, or ``DEFAULT_LIMIT_S_PER_PART`` a part)."""
+    (``DEFAULT_LIMIT_S``, or ``DEFAULT_LIMIT_S_PER_PART`` a part, at most
+    ``DEFAULT_LIMIT_MAX_S`` unless that leaves a part less than
+    ``DEFAULT_LIMIT_MIN_S_PER_PART``)."""
     if settings.time_limit_s is not None:
         return settings.time_limit_s
     if n_parts == 1:
         return DEFAULT_LIMIT_S
-    return max(DEFAULT_LIMIT_S, DEFAULT_LIMIT_S_PER_PART * n_parts)
+    cap = max(DEFAULT_LIMIT_MAX_S, DEFAULT_LIMIT_MIN_S_PER_PART * n_parts)
+    return max(DEFAULT_LIMIT_S, min(DEFAULT_LIMIT_S_PER_PART * n_parts, cap))
 
 
 def search_deadline(t0: float, limit_s: float) -> float:
