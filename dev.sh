@@ -13,12 +13,18 @@
 #                   the total ("TOTAL ... %"); settings in pyproject.toml [tool.coverage].
 #   ./dev.sh mutants [-j N] [--rev REV] [--only PATTERN] [FILE...]
 #                   mutation testing (mutmut) of the named core modules (default: every
-#                   module mapped in headless/devtools/mutants.py, long) with the tests
+#                   module mapped in tools/mutants.py, long) with the tests
 #                   mapped to each; ends with "killed K of M" per module and in total and
 #                   the surviving mutants' changed lines. Mutants go to .mutants/ (git-
 #                   ignored), never into the sources. -j: mutants run at once (default 1);
 #                   --only: just the mutants whose names match (fnmatch, repeatable).
-#   Neither coverage nor mutants is part of ./dev.sh test.
+#   ./dev.sh bench [WHAT] [ARGS]
+#                   benchmarks that print figures (python -m tools bench --help)
+#   ./dev.sh build [ARGS]
+#                   the extension zips, one per platform, in dist/ (python -m tools build)
+#   ./dev.sh samples
+#                   rebuild sample_blends/*.blend (python -m tools samples)
+#   Neither coverage, mutants nor bench is part of ./dev.sh test.
 set -euo pipefail
 cd "$(dirname "$0")"
 
@@ -109,10 +115,14 @@ case "${1:-}" in
     mutants)
         setup .venv "$PY" "${REQS311[@]}"
         shift
-        exec .venv/bin/python -m headless.devtools.mutants "$@"
+        exec .venv/bin/python -m tools.mutants "$@"
+        ;;
+    bench|build|samples)
+        setup .venv "$PY" "${REQS311[@]}"
+        exec .venv/bin/python -m tools "$@"
         ;;
     *)
-        echo "usage: ./dev.sh demo|test|coverage|mutants [extra arguments]" >&2
+        echo "usage: ./dev.sh demo|test|coverage|mutants|bench|build|samples [extra arguments]" >&2
         exit 2
         ;;
 esac

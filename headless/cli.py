@@ -1,13 +1,9 @@
-"""Command-line parsing and dispatch. Exit codes: 0 done (optimize: the goal reached),
-2 bad input, 3 optimize ended short of its goal (the result is still written), 130
-interrupted (Ctrl-C or SIGTERM; the checkpoint keeps what was fixed).
-
-A user mistake (``AutoscoopError``) prints one line ``error: <object>: <problem>`` on
-stderr and writes nothing; warnings print as ``warning: ...`` and the job goes on.
-The options that set a knob are generated from the settings schema
-(``core/settings.py``: its ``flag``, type, choices and help). The users' commands run
-in ``jobs`` (``import-xodr`` in ``xodr``); ``build``, ``samples`` and ``bench`` are
-developer tools in ``devtools``.
+"""Command-line parsing and dispatch (``python -m headless``): the users' commands
+``optimize``, ``coverage`` and ``import-xodr``; their options that set a knob are
+generated from the settings schema (``core/settings.py``). A user mistake
+(``AutoscoopError``) prints one line ``error: <object>: <problem>`` on stderr and writes
+nothing. The jobs run in ``jobs`` (``import-xodr`` in ``xodr``); the developer tools are
+apart, in the top-level ``tools`` package.
 """
 
 from __future__ import annotations
@@ -17,12 +13,28 @@ import logging
 import os
 import sys
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
-from autoscoop_blender.core.settings import CoverageSettings, OptimizeSettings, settings_schema
+from autoscoop_blender.core.model.sensors import PRESETS
+from autoscoop_blender.core.settings import (
+    CoverageSettings,
+    OptimizeSettings,
+    Setting,
+    settings_schema,
+)
 from headless import interrupts
-from headless.paths import SAMPLES
+
+
+DESCRIPTION = """\
+AutoSCOOP plans road-side sensors (cameras, lidars, radars on masts) that cover the
+target areas of a proving ground modelled in Blender, despite what occludes them.
+'python -m headless COMMAND --help' tells each command's options."""
+
+EXIT_CODES = """\
+exit codes: 0 done (optimize: the coverage goal reached); 2 bad input (one line
+'error: ...', nothing written); 3 optimize ended short of its goal (its result is still
+written); 130 interrupted by Ctrl-C or SIGTERM (the best plan so far is written, marked
+"interrupted"; --resume goes on)."""
 
 
 class _Parser(argparse.ArgumentParser):
@@ -33,36 +45,56 @@ class _Parser(argparse.ArgumentParser):
 
 
 def add_knob_options(parser: argparse.ArgumentParser, cls: type, overrides: bool = False) -> None:
-    """One option per knob of the settings class ``cls`` that has a flag, from its
-    schema; the option's ``dest`` is the knob's name.
+    """One option per knob of the settings class ``cls`` (``Setting.flag``), from its
+    schema: its type, choices, default and help; the option's ``dest`` is the knob's
+    path (``rho``, ``es.mu``).
 
     overrides: the options override a config file, so their default is None (unset).
     """
     for setting in settings_schema(cls):
         k = setting.knob
-        if k.flag is None:
-            continue
         kw: dict[str, Any] = {"dest": setting.path, "help": k.help}
         if k.choices:
             kw["choices"] = [c[0] for c in k.choices]
             kw["help"] += ": " + "; ".join(
                 f"{value}: {text[:1].lower()}{text[1:]}" for value, _, text in k.choices
             )
-        elif setting.kind is bool:  # a switch that turns the knob on
-            kw["action"], kw["const"] = "store_const", True
+        elif setting.kind is bool:  # --knob / --no-knob
+            kw["action"] = argparse.BooleanOptionalAction
         else:
             kw["type"] = setting.kind
+            kw["metavar"] = setting.kind.__name__.upper()
         kw["default"] = None if overrides else setting.default
-        if setting.default is not None and setting.kind is not bool:
-            kw["help"] += f" (default {setting.default})"
-        parser.add_argument(k.flag, **kw)
+        kw["help"] += _default_text(setting)
+        parser.add_argument(setting.flag, **kw)
+
+
+def _default_text(setting: Setting) -> str:
+    """`` (default X)`` for the help of a knob's option; nothing where the default is
+    None (the help says what is derived then)."""
+    if setting.default is None:
+        return ""
+    if setting.kind is bool:
+        return f" (default {'on' if setting.default else 'off'})"
+    return (
+        f" (default {setting.default:g})"
+        if setting.kind is float
+        else f" (default {setting.default})"
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="python -m headless", description=__doc__)
+    parser = _Parser(
+        prog="python -m headless",
+        description=DESCRIPTION,
+        epilog=EXIT_CODES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
-    cov = sub.add_parser("coverage", help="coverage of a set of sensors on a scene")
+    cov = sub.add_parser(
+        "coverage", help="count the coverage of given sensors on a scene (a plan, edited or not)"
+    )
     cov.add_argument("scene", nargs="?", help=".blend file (inside Blender: the open one)")
     cov.add_argument("--sensors", required=True, help="sensors JSON (see README)")
     add_knob_options(cov, CoverageSettings)
@@ -70,13 +102,23 @@ def build_parser() -> argparse.ArgumentParser:
     cov.add_argument("--points-csv", help="per-target-point CSV")
     _overwrite_option(cov, "--out and --points-csv")
 
-    opt = sub.add_parser("optimize", help="place sensors with the evolution strategy")
+    opt = sub.add_parser(
+        "optimize",
+        help="plan sensors and masts that cover the target areas (lp by default: a plan "
+        "and a proven lower bound on its cost)",
+    )
     opt.add_argument(
         "scene",
         nargs="?",
         help=".blend file (default: the file Blender opened, else sample_blends/two_routes)",
     )
     add_knob_options(opt, OptimizeSettings, overrides=True)
+    opt.add_argument(
+        "--model",
+        choices=sorted(PRESETS),
+        help="the sensor model, a preset (default: the config file's, else paper_camera; "
+        "a model of your own or a mixed pack: in --config)",
+    )
     opt.add_argument(
         "--config", help="TOML file of settings and model (the options above override it)"
     )
@@ -99,7 +141,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--workers",
         type=int,
         default=None,
-        help="processes that evaluate in parallel (default: one per core, one inside a Blender binary; same answer)",
+        help="es: processes that score each population at once (default: one per core, one "
+        "inside a Blender binary; the same answer); with --engine ray: the CPUs of a local Ray",
     )
     opt.add_argument(
         "--engine",
@@ -139,66 +182,6 @@ def build_parser() -> argparse.ArgumentParser:
         help="flat: a ground just below the lowest road (default); none: roads only",
     )
 
-    bld = sub.add_parser("build", help="build the extension zips (one per platform)")
-    bld.add_argument("--out-dir", default="dist", help="default dist/")
-    bld.add_argument(
-        "--platform",
-        action="append",
-        help="linux-x64, windows-x64, macos-arm64, macos-x64, windows-arm64 (default all "
-        "but windows-arm64)",
-    )
-    bld.add_argument("--wheel-cache", help="where downloaded wheels are kept (build/wheels/)")
-
-    smp = sub.add_parser("samples", help="rebuild the sample .blend files")
-    smp.add_argument("--out-dir", default=str(SAMPLES))
-
-    bench = sub.add_parser("bench", help="benchmarks that print figures")
-    bench.add_argument(
-        "what",
-        nargs="?",
-        default="all",
-        choices=("all", "coverage", "optimize", "scaling", "bound", "xodr", "constants"),
-        help="all (default): speed/accuracy, optimizer runs, stability, scaling, bounds, "
-        "ES vs paper -> bench/results.json and charts; scaling, bound: that section only; "
-        "xodr: import and plan each OpenDRIVE file of tests/data/xodr -> bench/xodr.json; "
-        "constants: ES zeta and greedy mast preference swept on two_routes, full_ground "
-        "tiles and an OpenDRIVE scene -> bench/constants.json",
-    )
-    bench.add_argument(
-        "--quick", action="store_true", help="all, scaling, bound, constants: quicker"
-    )
-    bench.add_argument("--scene", default=str(SAMPLES / "two_routes.blend"))
-    bench.add_argument("--poses", type=int, default=12, help="coverage: poses per method")
-    bench.add_argument("--seed", type=int, default=0)
-    bench.add_argument("--out", help="coverage: also write the figures to this JSON file")
-    bench.add_argument(
-        "--preferences",
-        type=_floats,
-        help="constants: greedy mast preferences for the cost objective, comma-separated "
-        "('' none; default 0 to 3)",
-    )
-    bench.add_argument(
-        "--objective-preferences",
-        type=_floats,
-        help="constants: the few for the sensors and masts objectives (default 0,0.1,0.4,1)",
-    )
-    bench.add_argument(
-        "--zetas", type=_floats, help="constants: ES zetas ('' none; default 0.02,0.05,0.1)"
-    )
-    bench.add_argument(
-        "--seeds", type=int, help="constants: ES seeds per zeta, from --seed on (default 4)"
-    )
-    bench.add_argument(
-        "--resume",
-        action="store_true",
-        help="constants: keep the runs of bench/constants.json, run only the missing ones",
-    )
-    bench.add_argument("--out-dir", default="bench", help="where figures and runs go")
-    bench.add_argument(
-        "--paper-dir",
-        default="bench/paper_pointcloud",
-        help="optimize: output folder of the paper-faithful run (reused or resumed)",
-    )
     return parser
 
 
@@ -209,11 +192,6 @@ def _overwrite_option(parser: argparse.ArgumentParser, what: str) -> None:
         help=f"replace {what} if it exists (without it, an existing output is refused; an "
         "output is never one of the inputs)",
     )
-
-
-def _floats(text: str) -> tuple[float, ...]:
-    """``0,0.1,0.4`` -> (0.0, 0.1, 0.4); ``''`` -> ()."""
-    return tuple(float(t) for t in text.split(",") if t.strip())
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -230,9 +208,6 @@ def main(argv: list[str] | None = None) -> int:
         "coverage": _coverage,
         "optimize": _optimize,
         "import-xodr": _import_xodr,
-        "build": _build,
-        "samples": _samples,
-        "bench": _bench,
     }
     from autoscoop_blender.core.errors import AutoscoopError
 
@@ -276,28 +251,3 @@ def _import_xodr(args: argparse.Namespace) -> int:
     from headless import xodr
 
     return xodr.import_xodr(args)
-
-
-def _build(args: argparse.Namespace) -> int:
-    from headless.devtools import build_extension
-
-    argv = ["--out-dir", args.out_dir]
-    for platform in args.platform or []:
-        argv += ["--platform", platform]
-    if args.wheel_cache:
-        argv += ["--wheel-cache", args.wheel_cache]
-    return build_extension.main(argv)
-
-
-def _samples(args: argparse.Namespace) -> int:
-    from headless.devtools import samples
-
-    for path in samples.build_all(Path(args.out_dir)):
-        print(path)
-    return 0
-
-
-def _bench(args: argparse.Namespace) -> int:
-    from headless.devtools import bench
-
-    return bench.main(args)

@@ -17,13 +17,18 @@ from autoscoop_blender.core.budget import Estimate, bytes_text, count_text
 from autoscoop_blender.core.errors import AutoscoopError, InputError
 from autoscoop_blender.core.evaluate import evaluate_layout
 from autoscoop_blender.core.model.scene import SceneModel
-from autoscoop_blender.core.model.sensors import SensorPack
+from autoscoop_blender.core.model.sensors import PRESETS, SensorPack
 from autoscoop_blender.core.optimize.base import Progress
 from autoscoop_blender.core.optimize.parts import PartBuilder
 from autoscoop_blender.core.optimize.planner import time_limit
 from autoscoop_blender.core.result import Result, area_at
 from autoscoop_blender.core.run import Run
-from autoscoop_blender.core.settings import CoverageSettings, OptimizeSettings, flag_values
+from autoscoop_blender.core.settings import (
+    CoverageSettings,
+    OptimizeSettings,
+    flag_values,
+    with_values,
+)
 from autoscoop_blender.io.config import load_config
 from autoscoop_blender.io.figure import render_png
 from autoscoop_blender.io.progress_text import duration, number
@@ -105,8 +110,10 @@ def optimize(args: argparse.Namespace) -> int:
     """
     settings, model = load_config(args.config)
     overrides = flag_values(OptimizeSettings, vars(args))
-    settings = replace(settings, **{k: v for k, v in overrides.items() if v is not None})
+    settings = with_values(settings, {k: v for k, v in overrides.items() if v is not None})
     settings = settings.validated()
+    if args.model is not None:
+        model = PRESETS[args.model]
     workers = default_workers() if args.workers is None else args.workers
     if workers < 1:
         raise InputError(f"--workers {workers}: must be at least 1")

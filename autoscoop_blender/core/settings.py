@@ -8,7 +8,8 @@ derived from these definitions:
 * ``validated`` checks every limit, whoever built the settings (file, panel, code);
 * ``to_dict`` is what result.json and the checkpoint header record;
 * the panel's properties (``props.py``) and the command-line options
-  (``headless/cli.py``) are generated from ``settings_schema`` and ``Knob.flag``.
+  (``headless/cli.py``, one per knob, ``Setting.flag``) are generated from
+  ``settings_schema``.
 
 A new knob is one field here. Groups: ``CoverageSettings`` (how coverage is computed,
 also for ``headless coverage``), ``ESParams`` (the paper's Table II and the mutation
@@ -65,8 +66,9 @@ class Knob:
 
     lo, hi: limits (None: open-ended); lo_open, hi_open: the limit itself is not
     allowed. choices: (value, label, description) of a string setting. flag: its
-    command-line option, if it has one. label: its name in the panel (None: not in
-    the panel); soft: the panel slider's range, within the limits.
+    command-line option where it is not the one derived from its path
+    (``Setting.flag``). label: its name in the panel (None: not in the panel); soft:
+    the panel slider's range, within the limits.
     """
 
     help: str
@@ -126,6 +128,12 @@ class Setting:
         return self.path.rsplit(".", 1)[-1]
 
     @property
+    def flag(self) -> str:
+        """Its command-line option: the knob's own, else ``--`` and the path with dashes
+        (``rho`` -> ``--rho``, ``es.sigma_xy_m`` -> ``--es-sigma-xy-m``)."""
+        return self.knob.flag or "--" + self.path.replace(".", "-").replace("_", "-")
+
+    @property
     def prop_name(self) -> str:
         """The panel property's name: the path with dots as underscores."""
         return self.path.replace(".", "_")
@@ -161,9 +169,9 @@ class Setting:
                 raise InputError(f"{self.path} {value!r}: choose one of {', '.join(values)}")
             return
         if self.kind in (int, float) and not k.within(value):
-            where = f" ({k.flag})" if k.flag else ""
             raise InputError(
-                f"setting {self.path}{where} = {value!r} is out of range: must be {k.limits_text()}"
+                f"setting {self.path} ({self.flag}) = {value!r} is out of range: must be "
+                f"{k.limits_text()}"
             )
 
 
@@ -215,9 +223,25 @@ def from_mapping(cls: type[T], data: Mapping[str, Any], label: str) -> T:
 
 
 def flag_values(cls: type, options: Mapping[str, Any]) -> dict[str, Any]:
-    """The values of ``cls``'s knobs that have a command-line flag, from parsed
-    ``options`` keyed by knob name (argparse's ``vars(args)``)."""
-    return {s.path: options[s.path] for s in settings_schema(cls) if s.knob.flag is not None}
+    """The values of ``cls``'s knobs from parsed command-line ``options`` keyed by the
+    knobs' paths (argparse's ``vars(args)``); nested groups as dotted paths."""
+    return {s.path: options[s.path] for s in settings_schema(cls)}
+
+
+def with_values(settings: T, values: Mapping[str, Any]) -> T:
+    """``settings`` with the knobs at dotted ``values`` paths replaced (``"rho"``,
+    ``"es.mu"``); validated by the caller."""
+    top: dict[str, Any] = {}
+    nested: dict[str, dict[str, Any]] = {}
+    for path, value in values.items():
+        group, _, name = path.rpartition(".")
+        if group:
+            nested.setdefault(group, {})[name] = value
+        else:
+            top[path] = value
+    for group, inner in nested.items():
+        top[group] = with_values(getattr(settings, group), inner)
+    return replace(settings, **top)  # type: ignore[type-var]
 
 
 def check_all(settings: Any) -> None:
@@ -383,12 +407,17 @@ class OptimizeSettings(CoverageSettings):
         label="Coverage goal",
     )
     seed: int = knob(
-        0, "random seed (same seed, same answer)", lo=0, hi=2**63 - 1, flag="--seed", label="Seed"
+        0,
+        "es: random seed (same seed, same answer; lp and greedy draw nothing at random)",
+        lo=0,
+        hi=2**63 - 1,
+        flag="--seed",
+        label="Seed",
     )
     position_step_m: float | None = knob(
         None, "lattice of mast positions, m (default: twice the grid)", lo=0.0, lo_open=True
     )
-    patience: int = knob(2, "searches in a row that add nothing before giving up", lo=1)
+    patience: int = knob(2, "es: searches in a row that add nothing before giving up", lo=1)
     max_sensors: int | None = knob(None, "stop at this many sensors (default: no cap)", lo=1)
     cache: bool = knob(True, "targeted: keep sight rays per mast position (same answers)")
     objective: str = knob(
@@ -420,8 +449,9 @@ class OptimizeSettings(CoverageSettings):
     time_limit_s: float | None = knob(
         None,
         "lp: end the run after at most this many seconds with the best plan by then and "
-        "its proven gap (default: 240 s for a ground planned whole, 210 s for each part of "
-        "a ground planned in parts of up to 20,000 target points)",
+        "its proven gap (default: 240 s for a ground planned whole; 210 s for each part of "
+        "a ground planned in parts of up to 20,000 target points, at most 28 minutes in "
+        "all unless that leaves a part under 120 s)",
         lo=0.0,
         lo_open=True,
         flag="--time-limit",

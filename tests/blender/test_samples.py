@@ -7,8 +7,8 @@ import pytest
 import shapely
 
 from autoscoop_blender.scene.extract import extract_scene
-from headless.devtools import samples
 from tests.blender.conftest import SAMPLES
+from tools import samples
 
 
 def _model(path):

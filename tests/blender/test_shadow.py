@@ -15,7 +15,7 @@ from autoscoop_blender.core.geom.grid import GroundGrid
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA
 from autoscoop_blender.scene.bvh import BVHCaster
 from autoscoop_blender.scene.extract import extract_scene
-from headless.devtools.samples import FLAT_WALL_BOX
+from tools.samples import FLAT_WALL_BOX
 
 SENSOR = np.array([-8.0, 0.0, 7.0])  # inside SensorArea_1, 7 m over flat ground
 

@@ -251,6 +251,31 @@ def test_greedy_optimizer_from_the_command_line(tmp_path):
     assert code == 2 and "greedy optimizer needs the targeted method" in stderr
 
 
+def test_flags_set_what_a_config_file_sets(tmp_path):
+    """--rho, --model and a nested knob (--es-mu) on the command line give the run a
+    config file with the same keys gives, and override that file."""
+    cfg = tmp_path / "lidar.toml"
+    cfg.write_text('model = "roadside_lidar"\nrho = 0.5\n[es]\nmu = 5\n')
+    runs = {}
+    for name, args in (
+        ("file", ("--config", cfg)),
+        ("flags", ("--model", "roadside_lidar", "--rho", "0.5", "--es-mu", "5")),
+        ("both", ("--config", cfg, "--rho", "0.4", "--model", "paper_camera")),
+    ):
+        out = tmp_path / name
+        code, _, stderr = run_headless(
+            "optimize", FLAT, "--optimizer", "greedy", *args, "--out-dir", out
+        )
+        assert code == 0, stderr
+        runs[name] = json.loads((out / "result.json").read_text())
+    assert runs["file"]["model"] == runs["flags"]["model"]
+    assert runs["file"]["model"]["kind"] == "lidar"
+    assert runs["file"]["settings"] == runs["flags"]["settings"]
+    assert runs["flags"]["settings"]["rho"] == 0.5 and runs["flags"]["settings"]["es"]["mu"] == 5
+    assert runs["file"]["sensors"] == runs["flags"]["sensors"]
+    assert runs["both"]["settings"]["rho"] == 0.4 and runs["both"]["model"]["kind"] == "camera"
+
+
 def test_checkpoint_from_before_a_setting_existed_resumes_as_its_default(tmp_path):
     """The header's settings are read through the schema: a key missing from an older
     checkpoint, at the top or in a table, reads as its default."""

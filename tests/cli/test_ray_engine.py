@@ -28,10 +28,10 @@ from autoscoop_blender.core.run import Run
 from autoscoop_blender.core.settings import OptimizeSettings
 from autoscoop_blender.scene.factory import BVHFactory
 from headless import ray_engine
-from headless.devtools.build_extension import pinned_versions
 from tests.conftest import ROOT
 from tests.core.flat import box_mesh
 from tests.core.test_lp import drain
+from tools.build_extension import pinned_versions
 
 HAS_RAY = importlib.util.find_spec("ray") is not None
 needs_ray = pytest.mark.skipif(

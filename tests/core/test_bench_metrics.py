@@ -5,8 +5,8 @@ import json
 
 import numpy as np
 
-from headless.devtools.suite import _cell_verdicts, paper_figures
 from tests.core.flat import flat_grid
+from tools.suite import _cell_verdicts, paper_figures
 
 
 def test_cell_verdicts_follow_the_containing_cell():

@@ -3,7 +3,7 @@ best value per objective, and a zeta beating the default only beyond the seed sp
 
 import argparse
 
-from headless.devtools import constants_bench as cb
+from tools import constants_bench as cb
 
 
 def _greedy(scene, value, got, objective="cost"):

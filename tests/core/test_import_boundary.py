@@ -55,7 +55,7 @@ def _imports(name: str, path: Path, known: set[str]) -> set[str]:
 
 
 def test_no_import_cycles():
-    modules = _modules("autoscoop_blender", "headless")
+    modules = _modules("autoscoop_blender", "headless", "tools")
     names = sorted(modules)
     index = {m: k for k, m in enumerate(names)}
     edges = [(index[m], index[t]) for m in names for t in _imports(m, modules[m], set(names))]
@@ -70,11 +70,11 @@ def test_no_import_cycles():
 
 
 def test_developer_tools_stay_out_of_the_users_commands():
-    """Only the dispatcher (``headless.cli``) knows the developer tools: the extension
-    and the users' jobs import none of build, samples or bench."""
-    modules = _modules("autoscoop_blender", "headless")
-    for m, path in modules.items():
-        if m.startswith("headless.devtools") or m == "headless.cli":
-            continue
-        tools = [t for t in _imports(m, path, set(modules)) if t.startswith("headless.devtools")]
-        assert tools == [], m
+    """The developer tools (``tools``) are apart: neither the extension nor the users'
+    commands import any of them, and ``tools`` is where they all are."""
+    users = _modules("autoscoop_blender", "headless")
+    everything = set(users) | set(_modules("tools"))
+    assert {"tools.bench", "tools.build_extension", "tools.samples", "tools.mutants"} <= everything
+    for m, path in users.items():
+        assert [t for t in _imports(m, path, everything) if t.split(".")[0] == "tools"] == [], m
+    assert not (ROOT / "headless" / "devtools").exists()

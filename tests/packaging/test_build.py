@@ -42,8 +42,8 @@ from typing import Any, NamedTuple
 import pytest
 from packaging.requirements import Requirement
 
-from headless.devtools import build_extension as bx
 from tests.conftest import ROOT
+from tools import build_extension as bx
 
 ADDON = "bl_ext.user_default.autoscoop"
 WHEEL_CACHE = ROOT / "build" / "wheels"
@@ -169,6 +169,23 @@ def test_zip_validates(linux_zip: Path) -> None:
     )
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert linux_zip.name == "autoscoop-0.1.0-linux_x64.zip"
+
+
+def test_zip_holds_the_add_on_its_manifest_and_wheels_only(linux_zip: Path) -> None:
+    """The zip's files are the add-on package's own sources (as in the repository), the
+    manifest and wheels: no developer tool, test, benchmark or cache."""
+    with zipfile.ZipFile(linux_zip) as zf:
+        names = [n for n in zf.namelist() if not n.endswith("/")]
+    source = ROOT / "autoscoop_blender"
+    expected = {
+        p.relative_to(source).as_posix()
+        for p in source.rglob("*")
+        if p.is_file() and "__pycache__" not in p.parts
+    }
+    ours = {n for n in names if not n.startswith("wheels/")}
+    assert ours == expected | {"blender_manifest.toml"}
+    assert all(n.endswith(".whl") for n in names if n.startswith("wheels/"))
+    assert not any(part in n for n in names for part in ("tools/", "tests/", "headless/"))
 
 
 def bundled_pins() -> dict[str, str]:

@@ -10,8 +10,8 @@ import tomllib
 
 import pytest
 
-from headless.devtools import mutants
 from tests.conftest import ROOT
+from tools import mutants
 
 
 def test_every_mapped_module_and_test_file_exists():

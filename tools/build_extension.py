@@ -1,6 +1,6 @@
 """Build the AutoSCOOP extension zips, one per platform, without a Blender binary.
 
-``python -m headless build [--out-dir DIR] [--platform P ...]``
+``./dev.sh build [--out-dir DIR] [--platform P ...]``
 
 Why it works this way:
 
@@ -412,7 +412,7 @@ def build(
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
-        prog="python -m headless.build_extension",
+        prog="python -m tools build",
         description="Build the AutoSCOOP extension zips, one per platform.",
     )
     parser.add_argument("--out-dir", type=Path, default=Path("dist"), help="default dist/")

@@ -14,7 +14,7 @@ Every scene follows the AutoSCOOP scene contract:
 All randomness comes from ``numpy.random.default_rng`` with fixed seeds, so two
 runs produce identical geometry.
 
-Run ``python -m headless samples`` to rebuild the files into ``sample_blends/``
+Run ``./dev.sh samples`` to rebuild the files into ``sample_blends/``
 next to the repository root.
 """
 

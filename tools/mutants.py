@@ -33,7 +33,7 @@ import tarfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[1]
 WORK = ROOT / ".mutants"
 
 # Module under mutation -> the test files that exercise it. Keep each list to the tests
@@ -193,8 +193,7 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
         rel = _relative(f)
         if rel not in TESTS_FOR:
             parser.error(
-                f"{f}: no tests mapped for it in headless/devtools/mutants.py "
-                f"(known: {', '.join(TESTS_FOR)})"
+                f"{f}: no tests mapped for it in tools/mutants.py (known: {', '.join(TESTS_FOR)})"
             )
         if rel not in modules:
             modules.append(rel)

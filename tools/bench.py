@@ -1,4 +1,4 @@
-"""Benchmarks that print figures (not timed tests): ``python -m headless bench ...``.
+"""Benchmarks that print figures (not timed tests): ``./dev.sh bench ...``.
 
 Figures are wall-clock on this machine; compare methods by the ratios measured in
 one run, since shared machines are noisy.
@@ -19,19 +19,19 @@ from autoscoop_blender.core.coverage.targeted import TargetedEvaluator
 from autoscoop_blender.core.geom.grid import GroundGrid
 from autoscoop_blender.core.model.scene import random_points
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA, frame
-from headless.devtools import suite
-from headless.devtools.machine import machine_line
 from headless.files import json_text, load_scene
+from tools import suite
+from tools.machine import machine_line
 
 
 def main(args: argparse.Namespace) -> int:
     """``bench [all|coverage|optimize|scaling|bound|xodr|constants]``."""
     if args.what == "constants":
-        from headless.devtools import constants_bench
+        from tools import constants_bench
 
         return constants_bench.run(args)
     if args.what == "xodr":
-        from headless.devtools import xodr_bench
+        from tools import xodr_bench
 
         return xodr_bench.run(args)
     if args.what == "coverage":

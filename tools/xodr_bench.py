@@ -25,9 +25,9 @@ from autoscoop_blender.core.errors import SceneContractError
 from autoscoop_blender.core.model.scene import area_from_rings
 from autoscoop_blender.io.georef import check_crs
 from autoscoop_blender.io.opendrive import build_import, read_opendrive
-from headless.devtools.machine import machine_line
 from headless.files import json_text
 from headless.paths import REPO
+from tools.machine import machine_line
 
 XODR = REPO / "tests" / "data" / "xodr"
 FILES = ("AstaZero_FlexZoneCrossing", "AstaZero_GaragePlanHighRes", "Town01", "Town04")

@@ -1,4 +1,4 @@
-"""``python -m headless bench [--quick]``: speed against accuracy, optimizer runs,
+"""``./dev.sh bench [--quick]``: speed against accuracy, optimizer runs,
 stability across seeds, scaling, and the default pipeline against the paper's.
 
 Writes ``bench/results.json``, ``bench/speed_accuracy.png`` and ``bench/optimize.png``
@@ -50,9 +50,9 @@ from autoscoop_blender.core.run import Run
 from autoscoop_blender.core.settings import CoverageSettings, FitnessParams, OptimizeSettings
 from autoscoop_blender.io.reports import result_dict
 from autoscoop_blender.io.sensor_file import parse_sensors
-from headless.devtools.machine import machine_line
 from headless.files import json_text, load_scene
 from headless.paths import SAMPLES
+from tools.machine import machine_line
 
 REFERENCE_GRID_M = 0.25
 BAND_M = FitnessParams().band_m
@@ -110,7 +110,7 @@ def run(args: argparse.Namespace) -> int:
     results["default_vs_paper"] = default_vs_paper(Path(args.paper_dir), args.seed, out)
     (out / "results.json").write_text(json_text(results))
 
-    from headless.devtools.charts import bound_chart, optimize_chart, speed_accuracy_chart
+    from tools.charts import bound_chart, optimize_chart, speed_accuracy_chart
 
     speed_accuracy_chart(results, out / "speed_accuracy.png")
     optimize_chart(results, out / "optimize.png")
@@ -131,7 +131,7 @@ def run_bound(args: argparse.Namespace) -> int:
     results.setdefault("date", date.today().isoformat())
     results.setdefault("machine", machine_line())
     path.write_text(json_text(results))
-    from headless.devtools.charts import bound_chart
+    from tools.charts import bound_chart
 
     bound_chart(results, out / "bound.png")
     print(f"wrote the bound section of {path} and {out / 'bound.png'}")
@@ -176,8 +176,8 @@ def reference_check() -> dict[str, float]:
 
     from autoscoop_blender.scene.extract import extract_scene
     from autoscoop_blender.scene.factory import BVHFactory
-    from headless.devtools.samples import FLAT_WALL_BOX
     from headless.files import open_blend
+    from tools.samples import FLAT_WALL_BOX
 
     open_blend(str(SAMPLES / "flat_wall.blend"))
     model = replace(MODEL, min_density_per_m2=0.0)

@@ -1,6 +1,6 @@
 """Whole grounds planned as a user plans them, with time, memory, coverage and gap.
 
-``python -m headless.devtools.grounds_bench [--grounds two_routes,tiles1,...]``: each
+``python -m tools.grounds_bench [--grounds two_routes,tiles1,...]``: each
 ground is planned by the command line at its defaults (``headless optimize X.blend``:
 1 m grid, lp, cost), one at a time, in a process of its own, then its plan is
 counted again by ``headless coverage``. The grounds:
@@ -33,8 +33,8 @@ from datetime import date
 from pathlib import Path
 from typing import Any
 
-from headless.devtools.machine import machine_line
 from headless.paths import REPO, SAMPLES
+from tools.machine import machine_line
 
 GROUNDS = ("two_routes", "tiles1", "tiles3", "tiles6", "tiles12", "Town01", "Town04")
 XODR = REPO / "tests" / "data" / "xodr"

@@ -45,10 +45,10 @@ from pathlib import Path
 from typing import Any
 
 from autoscoop_blender.core.settings import FitnessParams, OptimizeSettings
-from headless.devtools.machine import machine_line
-from headless.devtools.suite import MODEL, _in_fresh_process, _peak_rss_mb, only_tiles
 from headless.files import json_text
 from headless.paths import REPO, SAMPLES
+from tools.machine import machine_line
+from tools.suite import MODEL, _in_fresh_process, _peak_rss_mb, only_tiles
 
 # Up to 100: the masts keep falling as the preference rises.
 PREFERENCES = (

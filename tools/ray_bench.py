@@ -1,6 +1,6 @@
 """Ray's part builds, 1 worker against 2, and what that projects to on a cluster.
 
-``python -m headless.devtools.ray_bench [--scene X.blend] [--workers 1,2] [--plan 2]``:
+``python -m tools.ray_bench [--scene X.blend] [--workers 1,2] [--plan 2]``:
 a ground of a few parts at the lp optimizer's defaults (1 m grid, cost; default:
 ``tests/data/xodr/Town01.xodr`` imported, 3 parts), once per worker count, each in a
 process of its own (``headless/ray_engine.py``): first every part's candidates built
@@ -38,8 +38,8 @@ from datetime import date
 from pathlib import Path
 from typing import Any
 
-from headless.devtools.machine import machine_line
 from headless.paths import REPO
+from tools.machine import machine_line
 
 TOWN01 = REPO / "tests" / "data" / "xodr" / "Town01.xodr"
 GROUND_POINTS = 1_000_000  # 1 km^2 of target at 1 m
@@ -69,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
         for w in (int(x) for x in args.workers.split(",")):
             out = Path(tmp) / f"run{w}.json"
             subprocess.run(
-                [sys.executable, "-m", "headless.devtools.ray_bench", "--scene", scene,
+                [sys.executable, "-m", "tools.ray_bench", "--scene", scene,
                  "--one", str(w), "--plan", args.plan, "--json", str(out)],
                 cwd=REPO, check=True,
             )  # fmt: skip
