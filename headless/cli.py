@@ -24,7 +24,6 @@ from autoscoop_blender.core.settings import (
 )
 from headless import interrupts
 
-
 DESCRIPTION = """\
 AutoSCOOP plans road-side sensors (cameras, lidars, radars on masts) that cover the
 target areas of a proving ground modelled in Blender, despite what occludes them.

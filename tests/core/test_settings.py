@@ -58,10 +58,19 @@ def test_a_file_round_trips_through_the_schema():
         ({"rho": 0.0}, "setting rho (--rho) = 0.0 is out of range: must be in (0, 1]"),
         ({"seed": -1}, "setting seed (--seed) = -1 is out of range: must be in [0, 9.22337e+18]"),
         ({"seed": 10**400}, "setting seed (--seed) = 1000"),
-        ({"es": {"sigma_xy_m": -1}}, "setting es.sigma_xy_m (--es-sigma-xy-m) = -1.0 is out of range"),
-        ({"es": {"sigma_yaw_deg": math.nan}}, "setting es.sigma_yaw_deg (--es-sigma-yaw-deg) = nan is out of range"),
+        (
+            {"es": {"sigma_xy_m": -1}},
+            "setting es.sigma_xy_m (--es-sigma-xy-m) = -1.0 is out of range",
+        ),
+        (
+            {"es": {"sigma_yaw_deg": math.nan}},
+            "setting es.sigma_yaw_deg (--es-sigma-yaw-deg) = nan is out of range",
+        ),
         ({"grid_m": 0}, "setting grid_m (--grid) = 0.0 is out of range: must be > 0"),
-        ({"fitness": {"theta_m": math.inf}}, "setting fitness.theta_m (--fitness-theta-m) = inf is out of range"),
+        (
+            {"fitness": {"theta_m": math.inf}},
+            "setting fitness.theta_m (--fitness-theta-m) = inf is out of range",
+        ),
         ({"method": "raster"}, "method 'raster': choose one of targeted, pointcloud"),
         ({"optimizer": "greedy", "method": "pointcloud"}, "greedy optimizer needs the targeted"),
     ],
