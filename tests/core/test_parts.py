@@ -123,6 +123,21 @@ def test_the_part_wise_bound_never_passes_the_whole_grounds(k, monkeypatch):
     assert parts.stop_reason.startswith("Reached the goal")
 
 
+def test_the_time_left_never_passes_the_runs_limit(small_parts):
+    """A run in parts estimates what is left from the parts done so far, but never
+    past its own time limit: with 1 s in all and parts that take longer, each
+    estimate ends by the deadline (the estimate once the first part is done would
+    otherwise be 2 parts' time)."""
+    run = Run(road(), box_caster(WALL), PAPER_CAMERA, settings(rho=0.9, time_limit_s=1.0))
+    deadline = run.problem.t0 + 1.0
+    etas = []
+    for p in run.steps():
+        if p.eta_s is not None:
+            etas.append(p.eta_s)
+            assert p.eta_s <= max(0.0, deadline - time.perf_counter()) + 1e-6
+    assert etas  # parts were done and estimates given
+
+
 def test_a_stopped_run_keeps_the_parts_done_and_resume_finishes_it(small_parts):
     """Stopped after its first part's sensors: the plan covers that part; resumed from
     those sensors, the run builds no candidates for the part done and reaches the goal

@@ -412,6 +412,8 @@ def solve_in_parts(
         done = sum(open_points[: k + finished])
         spent = time.perf_counter() - t0
         eta = spent * (total_open - done) / done if done else None
+        if eta is not None and deadline is not None:  # the run ends by its deadline
+            eta = min(eta, max(0.0, deadline - t0 - spent))
         masts = len({(f.pose.x, f.pose.y) for f in solution.sensors[first:]})
         return replace(
             p,
