@@ -24,6 +24,8 @@
 #                   the extension zips, one per platform, in dist/ (python -m tools build)
 #   ./dev.sh samples
 #                   rebuild sample_blends/*.blend (python -m tools samples)
+#   ./dev.sh docs   write the docs' generated reference pages and build the site with
+#                   mkdocs --strict into build/site/ (open build/site/index.html)
 #   Neither coverage, mutants nor bench is part of ./dev.sh test.
 set -euo pipefail
 cd "$(dirname "$0")"
@@ -117,12 +119,12 @@ case "${1:-}" in
         shift
         exec .venv/bin/python -m tools.mutants "$@"
         ;;
-    bench|build|samples)
+    bench|build|samples|docs)
         setup .venv "$PY" "${REQS311[@]}"
         exec .venv/bin/python -m tools "$@"
         ;;
     *)
-        echo "usage: ./dev.sh demo|test|coverage|mutants|bench|build|samples [extra arguments]" >&2
+        echo "usage: ./dev.sh demo|test|coverage|mutants|bench|build|samples|docs [extra arguments]" >&2
         exit 2
         ;;
 esac

@@ -29,11 +29,14 @@ AutoSCOOP plans road-side sensors (cameras, lidars, radars on masts) that cover 
 target areas of a proving ground modelled in Blender, despite what occludes them.
 'python -m headless COMMAND --help' tells each command's options."""
 
-EXIT_CODES = """\
-exit codes: 0 done (optimize: the coverage goal reached); 2 bad input (one line
-'error: ...', nothing written); 3 optimize ended short of its goal (its result is still
-written); 130 interrupted by Ctrl-C or SIGTERM (the best plan so far is written, marked
-"interrupted"; --resume goes on)."""
+# What each exit code of the users' commands means (the help's epilog, the reference).
+EXIT_CODES: dict[int, str] = {
+    0: "done (optimize: the coverage goal reached)",
+    2: "bad input: one line 'error: <object>: <problem>' on stderr, nothing written",
+    3: "optimize ended short of its goal; its result is written, and its stop reason says why",
+    130: "interrupted by Ctrl-C or SIGTERM: optimize writes its best plan so far, marked "
+    '"interrupted", once it has one; --resume goes on',
+}
 
 
 class _Parser(argparse.ArgumentParser):
@@ -86,7 +89,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="python -m headless",
         description=DESCRIPTION,
-        epilog=EXIT_CODES,
+        epilog="exit codes:\n" + "\n".join(f"  {c:>3}  {t}" for c, t in EXIT_CODES.items()),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)

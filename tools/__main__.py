@@ -1,5 +1,6 @@
-"""Developer tools: ``python -m tools build|samples|bench`` (``./dev.sh build``,
-``./dev.sh samples``, ``./dev.sh bench``). Exit codes as the users' commands'.
+"""Developer tools: ``python -m tools build|samples|bench|docs`` (``./dev.sh build``,
+``./dev.sh samples``, ``./dev.sh bench``, ``./dev.sh docs``). Exit codes as the users'
+commands'.
 
 The users' package (``headless``) never imports this one; nor does the extension.
 """
@@ -73,10 +74,17 @@ def build_parser() -> argparse.ArgumentParser:
     )
     bench.add_argument("--out-dir", default="bench", help="where figures and runs go")
     bench.add_argument(
+        "--charts-dir", default="docs/img", help="where the charts go (not --quick's)"
+    )
+    bench.add_argument(
         "--paper-dir",
         default="bench/paper_pointcloud",
         help="optimize: output folder of the paper-faithful run (reused or resumed)",
     )
+    docs = sub.add_parser(
+        "docs", help="write the docs' generated reference pages, then build the site (strict)"
+    )
+    docs.add_argument("--site-dir", default="build/site", help="default build/site/")
     return parser
 
 
@@ -87,7 +95,8 @@ def _floats(text: str) -> tuple[float, ...]:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    return {"build": _build, "samples": _samples, "bench": _bench}[args.command](args)
+    jobs = {"build": _build, "samples": _samples, "bench": _bench, "docs": _docs}
+    return jobs[args.command](args)
 
 
 def _build(args: argparse.Namespace) -> int:
@@ -113,6 +122,18 @@ def _bench(args: argparse.Namespace) -> int:
     from tools import bench
 
     return bench.main(args)
+
+
+def _docs(args: argparse.Namespace) -> int:
+    import subprocess
+
+    from headless.paths import REPO
+    from tools import docs
+
+    for path in docs.write():
+        print(path.relative_to(REPO))
+    cmd = [sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", args.site_dir]
+    return subprocess.run(cmd, cwd=REPO).returncode
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """``./dev.sh bench [--quick]``: speed against accuracy, optimizer runs,
 stability across seeds, scaling, and the default pipeline against the paper's.
 
-Writes ``bench/results.json``, ``bench/speed_accuracy.png`` and ``bench/optimize.png``
+Writes ``bench/results.json``, ``docs/img/speed_accuracy.png`` and ``docs/img/optimize.png``
 (``bench/quick/...`` with ``--quick``).
 
 The reference for accuracy is ``targeted`` on a 0.25 m grid at the exact pose (no
@@ -112,10 +112,11 @@ def run(args: argparse.Namespace) -> int:
 
     from tools.charts import bound_chart, optimize_chart, speed_accuracy_chart
 
-    speed_accuracy_chart(results, out / "speed_accuracy.png")
-    optimize_chart(results, out / "optimize.png")
-    bound_chart(results, out / "bound.png")
-    print(f"wrote {out / 'results.json'} and the charts in {out}")
+    charts = charts_dir(args, out)
+    speed_accuracy_chart(results, charts / "speed_accuracy.png")
+    optimize_chart(results, charts / "optimize.png")
+    bound_chart(results, charts / "bound.png")
+    print(f"wrote {out / 'results.json'} and the charts in {charts}")
     return 0
 
 
@@ -133,9 +134,18 @@ def run_bound(args: argparse.Namespace) -> int:
     path.write_text(json_text(results))
     from tools.charts import bound_chart
 
-    bound_chart(results, out / "bound.png")
-    print(f"wrote the bound section of {path} and {out / 'bound.png'}")
+    chart = charts_dir(args, out) / "bound.png"
+    bound_chart(results, chart)
+    print(f"wrote the bound section of {path} and {chart}")
     return 0
+
+
+def charts_dir(args: argparse.Namespace, out: Path) -> Path:
+    """Where the charts go: the docs' pictures (``--charts-dir``, docs/img/, where the
+    benchmarks page shows them), or beside a quick run's figures."""
+    charts = out if args.quick else Path(args.charts_dir)
+    charts.mkdir(parents=True, exist_ok=True)
+    return charts
 
 
 def run_scaling(args: argparse.Namespace) -> int:

@@ -29,8 +29,10 @@ SENSORS_CSV_HEADER = (
     "x",
     "y",
     "z",
+    "height_m",
     "pitch_deg",
     "yaw_deg",
+    "bearing_deg",
     "fitness",
     "target_covered_m2",
     "mast",
@@ -202,10 +204,17 @@ def point_rows(result: Result) -> list[tuple[float, float, float, int, int, floa
     ]
 
 
+def bearing(yaw_deg: float) -> float:
+    """A yaw (deg, counter-clockwise from the scene's +X) as a compass bearing (deg,
+    clockwise from the scene's +Y, its grid north), in [0, 360)."""
+    return (90.0 - yaw_deg) % 360.0
+
+
 def sensors_csv(result: Result) -> str:
-    """The paper's Table III columns, one row per sensor, plus its mast (1-based),
-    whether it stood already (1) or is new (0), and its model's kind (camera, lidar,
-    radar)."""
+    """The paper's Table III columns, one row per sensor, with its height above the
+    ground beside z and its compass bearing beside yaw (``bearing``), plus its mast
+    (1-based), whether it stood already (1) or is new (0), and its model's kind
+    (camera, lidar, radar)."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(SENSORS_CSV_HEADER)
@@ -216,8 +225,10 @@ def sensors_csv(result: Result) -> str:
                 f"{s.x:.3f}",
                 f"{s.y:.3f}",
                 f"{s.z:.3f}",
+                f"{s.height_m:.3f}",
                 f"{s.pitch_deg:.3f}",
                 f"{s.yaw_deg:.3f}",
+                f"{bearing(s.yaw_deg):.3f}",
                 f"{s.fitness:.1f}",
                 f"{s.covered_target_m2:.0f}",
                 s.mast + 1,

@@ -3,6 +3,7 @@ independent recomputation, the paper-faithful pipeline, checkpoints and resume."
 
 import csv
 import json
+import math
 import zlib
 from dataclasses import replace
 
@@ -151,10 +152,21 @@ def test_output_files(default_run):
     res = json.loads((out / "result.json").read_text())
     rows = list(csv.DictReader((out / "sensors.csv").open()))
     assert list(rows[0]) == [
-        "n", "x", "y", "z", "pitch_deg", "yaw_deg", "fitness", "target_covered_m2", "mast",
-        "existing", "kind",
+        "n", "x", "y", "z", "height_m", "pitch_deg", "yaw_deg", "bearing_deg", "fitness",
+        "target_covered_m2", "mast", "existing", "kind",
     ]  # fmt: skip
     assert len(rows) == len(res["sensors"])
+    for row, s in zip(rows, res["sensors"]):
+        # The mast's height above the ground, and the view's compass bearing: the
+        # direction (cos yaw, sin yaw) measured clockwise from +Y (north).
+        assert float(row["height_m"]) == pytest.approx(s["height_m"], abs=1e-3)
+        assert float(row["z"]) - float(row["height_m"]) == pytest.approx(
+            res["masts"][s["mast"] - 1]["z_ground"], abs=0.05
+        )
+        yaw = math.radians(s["yaw_deg"])
+        north = math.degrees(math.atan2(math.cos(yaw), math.sin(yaw))) % 360.0
+        assert min(abs(float(row["bearing_deg"]) - north), 360 - abs(
+            float(row["bearing_deg"]) - north)) == pytest.approx(0.0, abs=1e-3)  # fmt: skip
     assert {r["existing"] for r in rows} == {"0"}  # a plan from scratch: all new
     assert {r["kind"] for r in rows} == {res["model"]["kind"]}  # one model: its kind
     for row, s in zip(rows, res["sensors"]):
