@@ -45,7 +45,9 @@ def open_blend(path: str | None) -> str:
     if not p.is_file():
         raise InputError(f"{path}: file not found")
     try:
-        with interrupts.held():  # Blender's load handlers run Python (``interrupts``)
+        # (held: Blender's load handlers run Python, ``interrupts``; quiet: its "Read
+        # blend: ..." line is not ours to print)
+        with interrupts.held(), quiet_fds():
             bpy.ops.wm.open_mainfile(filepath=str(p.resolve()))
     except RuntimeError:
         raise InputError(f"{path}: not a readable .blend file") from None

@@ -35,6 +35,13 @@ from .model.sensors import SensorModel, SensorPack
 from .optimize.base import PlanBound
 from .problem import point_need
 
+# ``Result.notes`` of a scene where nothing stands over ``geom.outline``'s height above
+# the ground (the coverage map draws what does as occluders).
+CLEAR_SIGHT_NOTE = (
+    "nothing in the scene stands up from the ground (no wall, building or tree): "
+    "sight lines are assumed clear but for the terrain"
+)
+
 F64 = NDArray[np.float64]
 I32 = NDArray[np.int32]
 
@@ -140,6 +147,15 @@ class Result:
     excluded: tuple[Exclusion, ...] = ()
     targets_fingerprint: str = ""
     interrupted: bool = False
+
+    @property
+    def notes(self) -> tuple[str, ...]:
+        """What a reader of the plan should know about the scene: that nothing in it
+        stands up from the ground (an OpenDRIVE import, for one), so the sight lines
+        were clear but for the terrain."""
+        if self.occluder_outlines or not len(self.points):
+            return ()
+        return (CLEAR_SIGHT_NOTE,)
 
     @property
     def k_need(self) -> I32:

@@ -229,7 +229,9 @@ def summary(result: Result, k: int = 1) -> str:
 
 def details(result: Result) -> str:
     """The grey line under the summary: how the plan was made (optimizer and coverage
-    goal, or "evaluated layout"), the sensor model, the cost rule, the target grid."""
+    goal, or "evaluated layout"), the sensor model, the cost rule, the target grid, and
+    "no occluder" where nothing in the scene stands up from the ground
+    (``Result.notes``)."""
     settings = result.settings
     parts = []
     if getattr(settings, "optimizer", None):
@@ -257,6 +259,8 @@ def details(result: Result) -> str:
         parts.append(f"cost = {settings.mast_cost:g} per mast + {per_sensor}")
     if len(result.points):
         parts.append(f"{result.cell_m:g} m target grid")
+    if result.notes:  # nothing stands up from the ground
+        parts.append("no occluder: sight lines assumed clear")
     return "  ·  ".join(parts)
 
 

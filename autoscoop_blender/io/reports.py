@@ -79,6 +79,7 @@ def result_dict(result: Result, extra_versions: dict[str, str] | None = None) ->
         "metrics": result.metrics,
         "stop_reason": result.stop_reason,
         "interrupted": result.interrupted,
+        "notes": list(result.notes),
         "uncovered": list(result.uncovered),
         "no_mast_sites": excluded_list(result),
         "sensors": [
@@ -157,6 +158,7 @@ def coverage_dict(result: Result) -> dict[str, Any]:
         "wall_s": m["wall_s"],
         "origin": [float(v) for v in result.origin],
         "warnings": list(result.warnings),
+        "notes": list(result.notes),
         "no_mast_sites": excluded_list(result),
     }
 

@@ -38,6 +38,12 @@ RESULT: Fields = {
         "boolean",
         "true when Ctrl-C, SIGTERM or Esc stopped the run early: the best plan by then",
     ),
+    "notes": (
+        "list",
+        "what a reader of the plan should know about the scene, e.g. that nothing in it "
+        "stands up from the ground, so sight lines were clear but for the terrain (an "
+        "OpenDRIVE import)",
+    ),
     "uncovered": (
         "list",
         "uncovered patches, largest first: ``target`` (area name), ``m2``, centroid ``x``, ``y``",

@@ -26,23 +26,19 @@ from typing import Any
 from ..core.checks import check_keys, number
 from ..core.errors import InputError
 from ..core.model.sensors import MAX_COORD_M, MAX_RANGE_M, SensorModel, SensorSpec
+from . import result_fields
 from .reports import RESULT_SCHEMA
 
 TOP_KEYS = ("model", "sensors", "masts")
 SENSOR_KEYS = ("x", "y", "height_m", "pitch_deg", "yaw_deg", "model")
 # A result.json (``reports.result_dict``) is a sensors file too: besides ``model`` and
-# ``sensors`` it carries these keys, and these in each sensor, which are not read.
-RESULT_TOP_KEYS = (
-    "schema", "scene", "targets_fingerprint", "optimizer", "method", "seed", "settings",
-    "versions", "metrics", "stop_reason", "interrupted", "uncovered", "no_mast_sites",
-    "origin", "models",
-)  # fmt: skip
+# ``sensors`` it carries the other keys of ``result_fields.RESULT``, and in each sensor
+# and mast those of ``SENSOR`` and ``MAST``, which are not read.
+RESULT_TOP_KEYS = tuple(k for k in result_fields.RESULT if k not in TOP_KEYS)
 # Masts that stand already (``read_existing``); a result.json's carry more keys.
 MAST_KEYS = ("x", "y")
-RESULT_MAST_KEYS = ("n", "z_ground", "height_m", "sensors", "existing")
-RESULT_SENSOR_KEYS = (
-    "n", "z", "mast", "fitness", "epochs", "target_covered_m2", "footprint_m2", "existing",
-)  # fmt: skip
+RESULT_MAST_KEYS = tuple(k for k in result_fields.MAST if k not in MAST_KEYS)
+RESULT_SENSOR_KEYS = tuple(k for k in result_fields.SENSOR if k not in SENSOR_KEYS)
 
 
 def read_sensors(path: str | Path) -> list[SensorSpec]:

@@ -156,6 +156,7 @@ def test_output_files(default_run):
         "target_covered_m2", "mast", "existing", "kind",
     ]  # fmt: skip
     assert len(rows) == len(res["sensors"])
+    assert res["notes"] == []  # two_routes' buildings, walls and trees stand up
     for row, s in zip(rows, res["sensors"]):
         # The mast's height above the ground, and the view's compass bearing: the
         # direction (cos yaw, sin yaw) measured clockwise from +Y (north).

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 
+from autoscoop_blender.core.result import CLEAR_SIGHT_NOTE
 from autoscoop_blender.io.result_fields import MAST, METRICS, RESULT, SENSOR, SENSORS_CSV
 from tests.conftest import ROOT
 from tools import docs
@@ -58,16 +59,19 @@ def readme_run(tmp_path_factory):
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     commands = [c for c in shell_lines(README.read_text()) if c.startswith(".venv/bin/python")]
     assert [c.split()[3] for c in commands] == ["import-xodr", "optimize", "coverage"]
+    printed = {}
     for command in commands:
         proc = subprocess.run(
             command, shell=True, cwd=here, env=env, capture_output=True, text=True, timeout=600
         )
         assert proc.returncode == 0, (command, proc.stderr[-2000:])
-    return here
+        printed[command.split()[3]] = proc.stdout
+    return here, printed
 
 
 def test_the_readmes_example_plans_what_it_says(readme_run):
-    out = readme_run / "out" / "garage"
+    here, printed = readme_run
+    out = here / "out" / "garage"
     result = json.loads((out / "result.json").read_text())
     m = result["metrics"]
     # "3 cameras on one mast cover 99.9 % of the garage's 828 m^2 of lanes, at cost 6,
@@ -77,12 +81,20 @@ def test_the_readmes_example_plans_what_it_says(readme_run):
     assert round(m["target_area_m2"]) == 828
     recount = json.loads((out / "recount.json").read_text())
     assert recount["coverage_fraction"] == pytest.approx(m["coverage_fraction"], abs=1e-6)
+    # Its output is the plan's, not Blender's ("Read blend: ..."), and the imported
+    # ground, where nothing stands up, says that its sight lines were clear.
+    assert printed["optimize"].splitlines() == [
+        "3 sensors on 1 mast cover 99.88%, cost 6 >= 6 (optimal on the candidate set), in "
+        f"{m['wall_s']:.1f} s -> out/garage",
+        "Reached the goal: 97% of the target is covered.",
+    ]
+    assert result["notes"] == [CLEAR_SIGHT_NOTE] == recount["notes"]
 
 
 def test_the_result_files_hold_the_documented_keys(readme_run):
     """Every key a run writes is in the reference's tables, and every documented key is
     written (those for mixed packs only excepted: this run has one model)."""
-    out = readme_run / "out" / "garage"
+    out = readme_run[0] / "out" / "garage"
     result = json.loads((out / "result.json").read_text())
     for written, documented, mixed_only in (
         (result, RESULT, {"models"}),
