@@ -100,9 +100,11 @@ def build_parser() -> argparse.ArgumentParser:
     cov.add_argument("scene", nargs="?", help=".blend file (inside Blender: the open one)")
     cov.add_argument("--sensors", required=True, help="sensors JSON (see README)")
     add_knob_options(cov, CoverageSettings)
-    cov.add_argument("--out", required=True, help="result JSON")
+    cov.add_argument(
+        "--out", required=True, help="result JSON; its coverage map goes beside it (OUT.png)"
+    )
     cov.add_argument("--points-csv", help="per-target-point CSV")
-    _overwrite_option(cov, "--out and --points-csv")
+    _overwrite_option(cov, "--out, its map and --points-csv")
 
     opt = sub.add_parser(
         "optimize",

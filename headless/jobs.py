@@ -61,10 +61,12 @@ from headless.progress import ProgressBar
 
 
 def coverage(args: argparse.Namespace) -> int:
-    """``coverage``: evaluate a sensors file on a scene, write OUT.json (+ CSV)."""
+    """``coverage``: evaluate a sensors file on a scene, write OUT.json, its coverage
+    map OUT.png beside it (+ the points' CSV)."""
     settings = CoverageSettings(**flag_values(CoverageSettings, vars(args))).validated()
     notes_path = notes.beside(Path(args.out))
-    outputs = {Path(args.out): "--out", notes_path: "--out's notes"}
+    map_path = map_beside(Path(args.out))
+    outputs = {Path(args.out): "--out", notes_path: "--out's notes", map_path: "--out's map"}
     if args.points_csv:
         outputs[Path(args.points_csv)] = "--points-csv"
     inputs = {Path(args.sensors): "the sensors file (--sensors)"}
@@ -80,7 +82,10 @@ def coverage(args: argparse.Namespace) -> int:
     for line in result.notes:
         print(f"note: {line}", file=sys.stderr)
 
-    files: dict[Path, str | bytes] = {Path(args.out): json_text(coverage_dict(result))}
+    files: dict[Path, str | bytes] = {
+        Path(args.out): json_text(coverage_dict(result)),
+        map_path: render_png(result),
+    }
     if args.points_csv:
         files[Path(args.points_csv)] = csv_text(POINTS_HEADER, point_rows(result))
     every_note = notes.exclusion_file(result.excluded)
@@ -93,9 +98,18 @@ def coverage(args: argparse.Namespace) -> int:
     print(
         f"coverage {m['coverage_fraction']:.2%} ({m['covered_m2']:.0f} of "
         f"{m['target_area_m2']:.0f} m^2) by {len(specs)} sensor(s), "
-        f"{m['rays_cast']} rays, {m['wall_s']:.2f} s -> {args.out}"
+        f"{m['rays_cast']} rays, {m['wall_s']:.2f} s -> {args.out}, {map_path}"
     )
     return 0
+
+
+def map_beside(out: Path) -> Path:
+    """The coverage map of ``coverage --out OUT.json``: OUT.png beside it."""
+    return (
+        out.with_suffix(".png")
+        if out.suffix.lower() != ".png"
+        else out.with_name(out.name + ".png")
+    )
 
 
 EXIT_SHORT_OF_GOAL = 3

@@ -52,6 +52,16 @@ def test_coverage_outputs_agree(tmp_path, sensors_file):
     # Union: at least the best single sensor, at most their sum.
     per = [s["covered_target_m2"] for s in res["sensors"]]
     assert max(per) <= res["covered_m2"] <= sum(per)
+    # The map of the layout beside --out: a PNG 1,200 px wide (its IHDR).
+    png = (tmp_path / "out.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and int.from_bytes(png[16:20]) == 1200
+    assert stdout.rstrip().endswith(f"-> {out}, {tmp_path / 'out.png'}")
+    # It is an output like the others: not replaced without --overwrite.
+    code, _, stderr = run_headless(
+        "coverage", FLAT, "--sensors", sensors_file(TWO_SENSORS), "--out", tmp_path / "b.json",
+        "--points-csv", tmp_path / "out.png",
+    )  # fmt: skip
+    assert code == 2 and "out.png" in stderr and not (tmp_path / "b.json").exists()
 
 
 def test_min_density_zero_makes_counts_equal(tmp_path, sensors_file):
