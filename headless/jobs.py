@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from autoscoop_blender.core.budget import Estimate, bytes_text, count_text
+from autoscoop_blender.core.budget import Estimate
 from autoscoop_blender.core.errors import AutoscoopError, InputError
 from autoscoop_blender.core.evaluate import evaluate_layout
 from autoscoop_blender.core.model.scene import SceneModel
@@ -21,6 +21,7 @@ from autoscoop_blender.core.model.sensors import PRESETS, SensorPack
 from autoscoop_blender.core.optimize.base import Progress
 from autoscoop_blender.core.optimize.parts import PartBuilder
 from autoscoop_blender.core.optimize.planner import time_limit
+from autoscoop_blender.core.refusal import bytes_text, count_text
 from autoscoop_blender.core.result import Result, area_at
 from autoscoop_blender.core.run import Run
 from autoscoop_blender.core.settings import (

@@ -17,6 +17,9 @@ position lattice, no cropping); it is checked first against the analytic shadow 
 Time is seconds per pose evaluation as the optimizer calls it (target points plus the
 fitness band; for the cached method, amortised over the orientations an ES tries at
 each position, measured by replaying that many).
+
+One module: its sections share the plan (``FULL``, ``QUICK``), the runner in a fresh
+process and the results file they all write into.
 """
 
 from __future__ import annotations

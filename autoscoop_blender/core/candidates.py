@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 from scipy import sparse
 from scipy.spatial import cKDTree
 
-from . import budget
+from . import budget, refusal
 from .errors import InputError
 from .model.sensors import SensorModel, SensorPose, frame
 from .problem import Problem, model_orientations
@@ -260,8 +260,8 @@ def _outgrown(problem: Problem, nonzeros: int, done: int, total: int, limit: int
     est = problem.estimate
     return (
         f"the candidate matrix at grid_m = {problem.grid.spacing:g} outgrew its estimate "
-        f"({budget.count_text(est.nonzeros)} nonzeros): {budget.count_text(nonzeros)} after "
-        f"{done} of {total} mast positions, more than the {budget.count_text(limit)} this "
+        f"({refusal.count_text(est.nonzeros)} nonzeros): {refusal.count_text(nonzeros)} after "
+        f"{done} of {total} mast positions, more than the {refusal.count_text(limit)} this "
         f"machine can hold through the {problem.settings.optimizer} optimizer: raise "
         "grid_m (--grid) or position_step_m, or use --optimizer es"
     )

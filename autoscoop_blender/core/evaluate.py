@@ -15,7 +15,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..names import MOUNT_PROP
-from . import budget
+from . import refusal
 from .coverage.base import place
 from .coverage.evaluator import make_evaluator
 from .coverage.pointcloud import auto_oversample
@@ -61,7 +61,7 @@ def evaluate_layout(
         )
 
     pattern = pattern_rays_at if settings.method == "pointcloud" else None
-    budget.check_grid(scene, settings.grid_m, reach, pattern)
+    refusal.check_grid(scene, settings.grid_m, reach, pattern)
     grid = GroundGrid(scene, caster, settings.grid_m, settings.target_height_m, reach, check=False)
     evaluator = make_evaluator(settings, grid, caster)
     if settings.method == "pointcloud" and settings.target_height_m > 0:

@@ -8,7 +8,7 @@ reachability), the search space of mast positions and orientations, and the dema
 place, so that every optimizer and every later stage stands masts the same way.
 
 Before any of it is built, the run's memory and work are estimated from the settings,
-the model and the scene's areas (``budget.check_run``): a run that cannot finish is
+the model and the scene's areas (``refusal.check_run``): a run that cannot finish is
 refused with one line naming the setting to change.
 """
 
@@ -24,7 +24,7 @@ import shapely
 from numpy.typing import NDArray
 from shapely.geometry.base import BaseGeometry
 
-from . import budget
+from . import budget, refusal
 from .coverage.base import SensorCoverage
 from .coverage.cached import CachedTargetedEvaluator
 from .coverage.evaluator import Evaluator, make_evaluator
@@ -69,7 +69,7 @@ def run_estimate(
     """What an optimization of ``model`` sensors on ``scene`` with ``settings`` will
     need (``budget.estimate_run`` with the candidate orientations and the pointcloud's
     oversampling), ``workers`` ES worker processes included; ``check``: InputError
-    when it cannot go ahead (``budget.check_run``). ``min_density_per_m2`` in the
+    when it cannot go ahead (``refusal.check_run``). ``min_density_per_m2`` in the
     settings overrides the model's, as in ``Problem``."""
     if settings.min_density_per_m2 is not None:
         model = replace(model, min_density_per_m2=settings.min_density_per_m2)
@@ -79,7 +79,7 @@ def run_estimate(
         return settings.oversample or auto_oversample(model, grid_m)
 
     if check:
-        return budget.check_run(scene, model, settings, angles, oversample_at, workers)
+        return refusal.check_run(scene, model, settings, angles, oversample_at, workers)
     return budget.estimate_run(scene, model, settings, angles, oversample_at, workers=workers)
 
 

@@ -34,6 +34,9 @@ aspect (at most 1.6 high per 1 wide), the legend a 3.5 in column on the right.
 
 The PNG carries no software, version or time stamp: the same result gives the same
 bytes (on the same matplotlib and fonts).
+
+One module: the map, its legend column, title and scale bar are laid out together on
+one figure.
 """
 
 from __future__ import annotations

@@ -21,6 +21,9 @@ proving grounds kilometres across.
 
 Every spawned object carries ``names.IGNORE_PROP = True`` and lives in the results
 tree, so ``extract`` never treats it as an occluder on either count.
+
+One module: the cameras, frusta, footprints, masts and coverage colouring are one
+collection, made, replaced and undone together.
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ import time
 
 import pytest
 
-from autoscoop_blender.core import budget
+from autoscoop_blender.core import refusal
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA
 from autoscoop_blender.core.problem import run_estimate
 from autoscoop_blender.core.settings import OptimizeSettings
@@ -114,6 +114,6 @@ def test_sample_scenes_at_default_settings_are_allowed(name, optimizer):
     # Allowed on a 24 GiB machine (this one) holding Blender's 0.5 GiB; the small
     # samples on an 8 GiB laptop too. full_ground's lp: ~500 M nonzeros (measured
     # 499.6 M), about 19 GiB.
-    assert budget.verdict(est, memory_bytes=24 * GIB, resident=GIB // 2) is None
+    assert refusal.verdict(est, memory_bytes=24 * GIB, resident=GIB // 2) is None
     if name != "full_ground":
-        assert budget.verdict(est, memory_bytes=8 * GIB, resident=GIB // 2) is None
+        assert refusal.verdict(est, memory_bytes=8 * GIB, resident=GIB // 2) is None

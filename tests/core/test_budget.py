@@ -9,9 +9,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from autoscoop_blender.core import budget
+from autoscoop_blender.core import budget, machine, refusal
 from autoscoop_blender.core.candidates import build_candidates
 from autoscoop_blender.core.errors import InputError
+from autoscoop_blender.core.geom import grid_layout
 from autoscoop_blender.core.geom.grid import GroundGrid
 from autoscoop_blender.core.geom.raycast import BoxCaster
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA, ROADSIDE_LIDAR, TRAFFIC_RADAR
@@ -72,7 +73,7 @@ def test_grid_counts_match_the_grid_built():
         a = grid.arrays()
         resident = a.dist.nbytes + a.z.nbytes + a.normal.nbytes + grid._target_ordinal.nbytes
         assert resident == est.grid_cells * budget.GRID_CELL_BYTES
-        assert a.chunk_offset.nbytes == budget.chunk_count(grid.nx, grid.ny) * 4
+        assert a.chunk_offset.nbytes == grid_layout.chunk_count(grid.nx, grid.ny) * 4
 
 
 def test_run_counts_match_the_problem_and_its_candidates():
@@ -140,13 +141,13 @@ def test_refusal_names_the_candidate_matrix_and_other_fixes():
         return run_estimate(scene, PAPER_CAMERA, replace(settings, grid_m=g))
 
     with pytest.raises(InputError) as err:
-        budget.check(est, redo, memory_bytes=small, resident=0)
+        refusal.check(est, redo, memory_bytes=small, resident=0)
     msg = str(err.value)
     assert msg.startswith("the lp optimizer at grid_m = 1 needs a candidate matrix of about ")
     assert "62 mast positions x 216 orientations" in msg
     # The first coarser grid that fits, with what it needs.
     assert "raise grid_m (--grid; 2 needs " in msg
-    assert budget.verdict(redo(2.0), memory_bytes=small, resident=0) is None
+    assert refusal.verdict(redo(2.0), memory_bytes=small, resident=0) is None
     assert msg.endswith("or position_step_m, or use --optimizer es")
 
 
@@ -157,11 +158,11 @@ def test_work_limits():
         scene, PAPER_CAMERA, OptimizeSettings(grid_m=0.05, optimizer="es", method="pointcloud")
     )
     assert est.pattern_rays == 30_720 * 14**2
-    stage, why = budget.verdict(est, memory_bytes=1 << 50, resident=0)
+    stage, why = refusal.verdict(est, memory_bytes=1 << 50, resident=0)
     assert stage == "pattern" and "2.0 M rays a pose" in why
     # A full evaluation at 0.01 m: 201 M cells within 80 m.
     est = budget.estimate_grid(scene, 0.01, 80.0)
-    stage, why = budget.verdict(est, memory_bytes=1 << 50, resident=0)
+    stage, why = refusal.verdict(est, memory_bytes=1 << 50, resident=0)
     assert stage == "rays" and "20.0 M rays an evaluation" in why
 
 
@@ -192,9 +193,9 @@ def test_each_es_worker_holds_its_own_grid_and_cache():
     two = run_estimate(scene, PAPER_CAMERA, settings, workers=2).peak_bytes
     three = run_estimate(scene, PAPER_CAMERA, settings, workers=3)
     memory = (two + three.peak_bytes) // 2
-    assert budget.verdict(replace(three, workers=2), memory, 0)[0] == "workers"
+    assert refusal.verdict(replace(three, workers=2), memory, 0)[0] == "workers"
     with pytest.raises(InputError) as err:
-        budget.check(three, lambda g: three, memory_bytes=memory, resident=0)
+        refusal.check(three, lambda g: three, memory_bytes=memory, resident=0)
     msg = str(err.value)
     assert msg.startswith("the es optimizer at grid_m = 0.5 with 3 worker processes")
     assert msg.endswith("or use fewer workers (--workers)")
@@ -211,7 +212,7 @@ def test_default_runs_pass():
         settings = OptimizeSettings(optimizer=optimizer)
         problem = Problem(scene, BoxCaster(ground_z=0.0), PAPER_CAMERA, settings)
         est = problem.estimate
-        assert budget.verdict(est) is None
+        assert refusal.verdict(est) is None
         assert est.peak_bytes < 0.5 * GIB
         assert est.grid_cells == problem.grid.held_cells
 
@@ -239,10 +240,10 @@ def test_drops_in_batches_give_the_same_surface(monkeypatch):
 
 
 def test_machine_figures():
-    assert budget.machine_memory_bytes() > 256 << 20
-    assert budget.resident_bytes() >= 0
-    assert budget.count_text(46.6e9) == "46.6 G" and budget.count_text(512) == "512"
-    assert budget.bytes_text(43 * GIB) == "43.0 GiB" and budget.bytes_text(310 << 20) == "310 MiB"
+    assert machine.machine_memory_bytes() > 256 << 20
+    assert machine.resident_bytes() >= 0
+    assert refusal.count_text(46.6e9) == "46.6 G" and refusal.count_text(512) == "512"
+    assert refusal.bytes_text(43 * GIB) == "43.0 GiB" and refusal.bytes_text(310 << 20) == "310 MiB"
 
 
 def test_a_camera_with_a_resolution_keeps_8_more_bytes_a_cached_row():

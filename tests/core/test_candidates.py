@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from autoscoop_blender.core import budget
+from autoscoop_blender.core import budget, refusal
 from autoscoop_blender.core.candidates import POSITIONS_PER_REPORT, build_candidates
 from autoscoop_blender.core.coverage.targeted import TargetedEvaluator
 from autoscoop_blender.core.errors import InputError
@@ -120,8 +120,8 @@ def test_the_limit_is_the_most_nonzeros_allowed(monkeypatch):
     with pytest.raises(InputError) as err:
         built(p)
     text = str(err.value)
-    assert f"after 4 of 4 mast positions, more than the {budget.count_text(total - 1)} " in text
-    assert f": {budget.count_text(total)} after" in text
+    assert f"after 4 of 4 mast positions, more than the {refusal.count_text(total - 1)} " in text
+    assert f": {refusal.count_text(total)} after" in text
     assert "the candidate matrix at grid_m = 1 outgrew its estimate (" in text
     assert "through the greedy optimizer: raise grid_m" in text
     # The limit is the one for the problem's optimizer (greedy here).

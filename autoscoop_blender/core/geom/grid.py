@@ -7,9 +7,9 @@ for ``g^2`` of ground. Cells are addressed by their flat index ``i * ny + j``.
 
 Only cells a sensor may see a target point from, or that a mast in a sensor area may
 look at, are held: those within ``reach_m`` of an area, found at the resolution of
-tiles of 32 x 32 cells (``budget.grid_chunks``). A thin network of roads across a
+tiles of 32 x 32 cells (``grid_layout.grid_chunks``). A thin network of roads across a
 large ground holds a band along the roads, not the lattice over their bounds. Held
-cells are stored by chunks of ``budget.GRID_CHUNK`` (64) consecutive flat indices, in
+cells are stored by chunks of ``grid_layout.GRID_CHUNK`` (64) consecutive flat indices, in
 the lattice's order; a table over the whole lattice (one int32 per chunk, int64 past
 2^30 cells) gives what to add to a flat index c of each chunk to find its place:
 ``c + offset[c >> 6]``, one shift, one table entry and one sum. A chunk not held has
@@ -31,7 +31,7 @@ ground nobody looks at. Drops go in batches (``budget.DROP_BATCH``), which bound
 caster's memory in flight.
 
 The grid's memory and the work on it are estimated before anything is allocated
-(``budget.check_grid``, from the same chunks): a grid the machine cannot hold is
+(``refusal.check_grid``, from the same chunks): a grid the machine cannot hold is
 refused in one line.
 """
 
@@ -47,17 +47,18 @@ from numpy.typing import NDArray
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
-from .. import budget
+from .. import budget, refusal
 from ..errors import InputError, SceneContractError
 from ..model.scene import SceneModel
 from ..model.sensors import DORI_PX_PER_M, KINDS
+from . import grid_layout
 from .raycast import FloorCaster, RayCaster
 
 I64 = NDArray[np.int64]
 F64 = NDArray[np.float64]
 
-# Chunk c holds flat indices c * CHUNK .. c * CHUNK + CHUNK - 1 (``budget.grid_chunks``).
-CHUNK = budget.GRID_CHUNK
+# Chunk c holds flat indices c * CHUNK .. c * CHUNK + CHUNK - 1 (``grid_layout.grid_chunks``).
+CHUNK = grid_layout.GRID_CHUNK
 SHIFT = CHUNK.bit_length() - 1
 assert 1 << SHIFT == CHUNK, "a chunk is a power of two cells"
 # Distances are measured on a window this much wider than the cells asked for (m;
@@ -80,7 +81,7 @@ class GridArrays:
     must see each point (0: the run's setting), region_px_per_m (R,) the pixel density
     a camera must reach (0: none), region_kind (R,) the index in ``sensors.KINDS`` of
     the kind that must see it (-1: any). The cells held: chunk_offset
-    (ceil(nx * ny / CHUNK),) int32 or int64 (``budget.chunk_dtype``) per chunk of the
+    (ceil(nx * ny / CHUNK),) int32 or int64 (``grid_layout.chunk_dtype``) per chunk of the
     lattice, added to a flat index c in it to find c's place in the per-cell arrays
     (the dtype's least value for a chunk not held); per held cell (H = held chunks x
     CHUNK): dist (H,) float32 distance to the nearest target cell centre (m), z (H,)
@@ -115,7 +116,7 @@ class GroundGrid:
     ``arrays()`` in a worker process (``GroundGrid.from_arrays``): the same cells,
     surface and distances, with the worker's own caster for cells not dropped yet.
 
-    check: refuse (InputError) a grid whose estimate (``budget.check_grid``: the grid,
+    check: refuse (InputError) a grid whose estimate (``refusal.check_grid``: the grid,
     a full evaluation within ``reach_m``, the reference footprint's grid) the machine
     cannot hold; False when the caller has checked a run that includes it
     (``Problem``).
@@ -135,10 +136,10 @@ class GroundGrid:
             raise InputError(f"grid spacing {spacing} must be > 0")
         g = float(spacing)
         if check:
-            budget.check_grid(scene, g, reach_m)
+            refusal.check_grid(scene, g, reach_m)
         lo_z, hi_z = scene.z_range()
         areas = [a.geometry for a in (*scene.targets, *scene.sensor_areas)]
-        lattice = budget.grid_shape(shapely.union_all(areas).bounds, g, reach_m)
+        lattice = grid_layout.grid_shape(shapely.union_all(areas).bounds, g, reach_m)
         x0, y0, nx, ny = lattice
         cells, region = _target_cells(scene, lattice, g)
         if len(cells) == 0:
@@ -148,11 +149,11 @@ class GroundGrid:
                 "(smaller than one cell); use a finer --grid"
             )
         # Held chunks in the lattice's order: slot k for the k-th, at k * CHUNK.
-        starts, stops = budget.grid_chunks(areas, lattice, g, reach_m)
-        chunks = budget.ranges(starts, stops)
-        dtype = budget.chunk_dtype(nx, ny)
+        starts, stops = grid_layout.grid_chunks(areas, lattice, g, reach_m)
+        chunks = grid_layout.ranges(starts, stops)
+        dtype = grid_layout.chunk_dtype(nx, ny)
         offset: NDArray[np.signedinteger[Any]]
-        offset = np.full(budget.chunk_count(nx, ny), np.iinfo(dtype).min, dtype=dtype)
+        offset = np.full(grid_layout.chunk_count(nx, ny), np.iinfo(dtype).min, dtype=dtype)
         offset[chunks] = (np.arange(len(chunks)) - chunks) * CHUNK
         held = len(chunks) * CHUNK
         arrays = GridArrays(
@@ -355,7 +356,9 @@ class GroundGrid:
         # The target cells in the window, row by row.
         rows = np.arange(i0, i1) * self.ny
         tc = self.target_cells
-        ti, tj = np.divmod(tc[budget.ranges(*np.searchsorted(tc, [rows + j0, rows + j1]))], self.ny)
+        ti, tj = np.divmod(
+            tc[grid_layout.ranges(*np.searchsorted(tc, [rows + j0, rows + j1]))], self.ny
+        )
         if len(ti) == 0:
             return self._nearest(cells)
         outside = np.ones((i1 - i0, j1 - j0), dtype=bool)
@@ -448,7 +451,7 @@ def _target_cells(
     index of that area (the first one that holds it). Only the cells of tiles that
     meet an area are tried, ``budget.GRID_RASTER_BATCH`` at a time."""
     x0, y0, nx, ny = lattice
-    t = budget.GRID_TILE
+    t = grid_layout.GRID_TILE
     cells_parts, region_parts = [], []
     for k, area in enumerate(scene.targets):
         minx, miny, maxx, maxy = area.geometry.bounds
@@ -459,10 +462,10 @@ def _target_cells(
         if i1 < i0 or j1 < j0:
             continue
         window = (i0 // t, j0 // t, i1 // t + 1, j1 // t + 1)
-        ti, tj0, tj1 = budget.tile_runs([area.geometry], lattice, g, 0.0, window)
+        ti, tj0, tj1 = grid_layout.tile_runs([area.geometry], lattice, g, 0.0, window)
         # Rows of cells of each run, within the area's bounds: i, and j from ja to jb.
         rows = np.minimum(ti * t + t, i1 + 1) - np.maximum(ti * t, i0)
-        i = budget.ranges(np.maximum(ti * t, i0), np.minimum(ti * t + t, i1 + 1))
+        i = grid_layout.ranges(np.maximum(ti * t, i0), np.minimum(ti * t + t, i1 + 1))
         ja = np.repeat(np.maximum(tj0 * t, j0), rows)
         jb = np.repeat(np.minimum(tj1 * t, j1 + 1), rows)
         if len(i) == 0:
@@ -474,7 +477,7 @@ def _target_cells(
         for a, b in zip(np.r_[0, cuts], np.r_[cuts, len(i)]):
             n = jb[a:b] - ja[a:b]
             ci = np.repeat(i[a:b], n)
-            cj = budget.ranges(ja[a:b], jb[a:b])
+            cj = grid_layout.ranges(ja[a:b], jb[a:b])
             inside = shapely.contains_xy(area.geometry, x0 + (ci + 0.5) * g, y0 + (cj + 0.5) * g)
             cells_parts.append(ci[inside] * ny + cj[inside])
             region_parts.append(np.full(int(inside.sum()), k, dtype=np.int32))

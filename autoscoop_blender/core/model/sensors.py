@@ -66,6 +66,10 @@ pattern's density reaches ``min_density_per_m2`` (0 in ``cctv_camera``) and
 ``px_per_m`` reaches the larger of the model's ``min_px_per_m`` and its target area's
 ``dori``. A model without a resolution (every lidar, radar and angular camera) cannot
 cover a point whose target area asks for a DORI level.
+
+One module of about 700 lines: a sensor is one definition (its keys and limits, the
+presets and packs, its ray pattern and the analytic density that decides what it
+counts), checked as one by ``from_spec``.
 """
 
 from __future__ import annotations

@@ -53,6 +53,11 @@ on those sites, started from that plan.
 
 Solves run in a thread and the generators yield while they wait, so a caller (the
 Blender operator) stays responsive; closing the generator cancels the solve.
+
+One module of about 900 lines, on purpose: the sensors LP, its dual steps, the masts
+LP and MILP, the mast-aware bound and the parts' combination share the machinery of
+the restricted LP (HiGHS in a thread, the Lagrangian's pricing, ``LPSolution``) and are
+proven together in ``tests/core/test_bound.py``.
 """
 
 from __future__ import annotations

@@ -25,6 +25,9 @@ nodes, not seconds) unless the time limit ends it (``planner.py``: by default 24
 part): then the bounds stop where they are (still proven) and the plans come from
 what the LP has so far. A ground too large for one matrix is planned in parts with
 the same machinery (``parts.py``).
+
+A little over 500 lines: the whole-ground search (bounds beside plans, the LP's
+rounding, the mast-aware MILP's plan) is one generator with its stop and deadline.
 """
 
 from __future__ import annotations

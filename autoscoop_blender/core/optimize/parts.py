@@ -31,6 +31,9 @@ split moves goal to where the tangents are flattest; so the masts LP, whose last
 points cost the most, gives lines at the goals either side too, and each part's
 bound is the highest of its lines (still convex in its goal). The cost bound is
 mast_cost x masts + sensor_cost x sensors, each rounded up.
+
+A little over 500 lines: a part's build, bound, plan and the seams' repair run in one
+loop that holds the run's deadline, stop and lines of the bound.
 """
 
 from __future__ import annotations

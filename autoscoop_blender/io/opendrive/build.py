@@ -31,6 +31,10 @@ the jump, so no strip is invented across it. A lane whose ring crosses itself (i
 folds: a lateral offset beyond the radius of curvature; or the road winds over the
 same ground) is the union of its steps, made in chunks: no ``make_valid`` on a ring
 that may loop round a hundred times.
+
+One module of about 1,100 lines: the roads' sizing and limits, the lane borders
+sampled along s, and the meshes and areas made of them share one set of per-road
+sample arrays; ``parse.py`` reads the XML and ``geometry.py`` the reference lines.
 """
 
 from __future__ import annotations
