@@ -85,6 +85,11 @@ def build_parser() -> argparse.ArgumentParser:
         "docs", help="write the docs' generated reference pages, then build the site (strict)"
     )
     docs.add_argument("--site-dir", default="build/site", help="default build/site/")
+    docs.add_argument(
+        "--pictures",
+        action="store_true",
+        help="also make the guide's pictures again with the users' commands (about a minute)",
+    )
     return parser
 
 
@@ -130,7 +135,8 @@ def _docs(args: argparse.Namespace) -> int:
     from headless.paths import REPO
     from tools import docs
 
-    for path in docs.write():
+    made = docs.write() + (docs.pictures() if args.pictures else [])
+    for path in made:
         print(path.relative_to(REPO))
     cmd = [sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", args.site_dir]
     return subprocess.run(cmd, cwd=REPO).returncode

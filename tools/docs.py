@@ -170,3 +170,65 @@ def write() -> list[Path]:
     for path, text in pages().items():
         path.write_text(text, encoding="utf-8")
     return list(pages())
+
+
+# The docs' pictures, each made by the users' commands on a bundled file: (picture,
+# the commands' arguments after ``python -m headless``, the output to copy). ``{tmp}``
+# is a scratch folder; ``{xodr}`` the OpenDRIVE files of the tests.
+PICTURES: tuple[tuple[str, tuple[tuple[str, ...], ...], str], ...] = (
+    (
+        "garage_coverage.png",
+        (
+            (
+                "import-xodr",
+                "{xodr}/AstaZero_GaragePlanHighRes.xodr",
+                "--out",
+                "{tmp}/garage.blend",
+            ),
+            ("optimize", "{tmp}/garage.blend", "--out-dir", "{tmp}/plan", "--render"),
+        ),
+        "{tmp}/plan/coverage.png",
+    ),
+    ("garage_view.png", (), "{tmp}/plan/result_view.png"),
+    (
+        "garage_k2.png",
+        (("optimize", "{tmp}/garage.blend", "--out-dir", "{tmp}/k2", "--coverage-k", "2"),),
+        "{tmp}/k2/coverage.png",
+    ),
+    (
+        "garage_pack.png",
+        (
+            (
+                "optimize",
+                "{tmp}/garage.blend",
+                "--out-dir",
+                "{tmp}/pack",
+                "--config",
+                "{tmp}/pack.toml",
+            ),
+        ),  # fmt: skip
+        "{tmp}/pack/coverage.png",
+    ),
+)
+PACK = 'models = ["paper_camera", { preset = "roadside_lidar", sensor_cost = 4 }]\n'
+
+
+def pictures() -> list[Path]:
+    """Make the docs' pictures (``PICTURES``) with the users' commands; their paths."""
+    import shutil
+    import subprocess
+    import sys
+    import tempfile
+
+    made = []
+    with tempfile.TemporaryDirectory(prefix="autoscoop-docs-") as tmp:
+        (Path(tmp) / "pack.toml").write_text(PACK)
+        fill = {"tmp": tmp, "xodr": str(REPO / "tests" / "data" / "xodr")}
+        for name, commands, source in PICTURES:
+            for args in commands:
+                cmd = [sys.executable, "-m", "headless", *(a.format(**fill) for a in args)]
+                subprocess.run(cmd, cwd=REPO, check=True, capture_output=True)
+            target = REFERENCE.parent / "img" / name
+            shutil.copyfile(source.format(**fill), target)
+            made.append(target)
+    return made
