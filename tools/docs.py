@@ -210,7 +210,7 @@ PICTURES: tuple[tuple[str, tuple[tuple[str, ...], ...], str], ...] = (
         "{tmp}/pack/coverage.png",
     ),
 )
-PACK = 'models = ["paper_camera", { preset = "roadside_lidar", sensor_cost = 4 }]\n'
+PACK = 'models = ["paper_camera", { preset = "roadside_lidar", sensor_cost = 2 }]\n'
 
 
 def pictures() -> list[Path]:
