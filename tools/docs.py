@@ -190,6 +190,7 @@ PICTURES: tuple[tuple[str, tuple[tuple[str, ...], ...], str], ...] = (
         "{tmp}/plan/coverage.png",
     ),
     ("garage_view.png", (), "{tmp}/plan/result_view.png"),
+    ("garage_gis.png", (), "{tmp}/plan/sensors.geojson"),
     (
         "garage_k2.png",
         (("optimize", "{tmp}/garage.blend", "--out-dir", "{tmp}/k2", "--coverage-k", "2"),),
@@ -229,6 +230,45 @@ def pictures() -> list[Path]:
                 cmd = [sys.executable, "-m", "headless", *(a.format(**fill) for a in args)]
                 subprocess.run(cmd, cwd=REPO, check=True, capture_output=True)
             target = REFERENCE.parent / "img" / name
-            shutil.copyfile(source.format(**fill), target)
+            if source.endswith(".geojson"):
+                target.write_bytes(geojson_png(Path(source.format(**fill))))
+            else:
+                shutil.copyfile(source.format(**fill), target)
             made.append(target)
     return made
+
+
+def geojson_png(path: Path) -> bytes:
+    """A plan's ``sensors.geojson`` drawn as a GIS shows it: footprints and masts at
+    their WGS84 longitude and latitude (PNG bytes)."""
+    import io
+    import json
+    import math
+
+    from matplotlib.figure import Figure
+
+    features = json.loads(path.read_text())["features"]
+    fig = Figure(figsize=(8, 6), dpi=100)
+    ax = fig.add_subplot()
+    for f in features:
+        geometry, kind = f["geometry"], f["properties"]["kind"]
+        if geometry["type"] == "Polygon":
+            for ring in geometry["coordinates"][:1]:
+                lon, lat = zip(*ring)
+                ax.fill(lon, lat, color="#7aa6da", alpha=0.35, lw=0.6, ec="#3465a4")
+        elif kind == "mast":
+            lon, lat = geometry["coordinates"][:2]
+            ax.plot(lon, lat, "o", color="black", ms=7)
+            ax.annotate(f"mast {f['properties']['mast']}", (lon, lat), (6, 6),
+                        textcoords="offset points")  # fmt: skip
+    # Degrees of longitude shrink by cos(latitude): equal metres both ways.
+    lat0 = sum(ax.get_ylim()) / 2
+    ax.set_aspect(1 / math.cos(math.radians(lat0)))
+    ax.set_xlabel("longitude [deg, WGS84]")
+    ax.set_ylabel("latitude [deg, WGS84]")
+    ax.ticklabel_format(useOffset=False)
+    ax.set_title(f"{path.name}: masts and sensor footprints in WGS84")
+    ax.grid(alpha=0.3)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", bbox_inches="tight", metadata={"Software": None})
+    return buf.getvalue()
