@@ -23,7 +23,7 @@ from .geom.grid import GroundGrid
 from .geom.raycast import RayCaster, inside_solid
 from .masts import group_positions
 from .model.scene import SceneModel
-from .model.sensors import SensorModel, SensorSpec
+from .model.sensors import SensorModel, SensorPose, SensorSpec
 from .model.sites import site_blockers
 from .result import Provenance, Result, area_at, finish_layout
 from .settings import CoverageSettings
@@ -34,6 +34,30 @@ def resolve_model(spec: SensorSpec, settings: CoverageSettings) -> SensorModel:
     if settings.min_density_per_m2 is None:
         return spec.model
     return replace(spec.model, min_density_per_m2=settings.min_density_per_m2)
+
+
+def mount_height(
+    scene: SceneModel, grid: GroundGrid, spec: SensorSpec, model: SensorModel, x: float, y: float
+) -> float:
+    """How high above the ground a sensor at local (x, y) stands, m: its ``height_m``,
+    else its absolute ``z`` less the ground there, else its sensor area's height, else
+    its model's mount height."""
+    if spec.height_m is not None:
+        return spec.height_m
+    if spec.z is not None:
+        ground = float(grid.ground_z(np.array([[x, y]]))[0])
+        return max(spec.z - scene.origin[2] - ground, 0.0)
+    area = area_at(scene, x, y)
+    return area.height_m if area is not None and area.height_m is not None else model.mount_height_m
+
+
+def sensor_pose(
+    scene: SceneModel, grid: GroundGrid, spec: SensorSpec, model: SensorModel
+) -> SensorPose:
+    """Where a sensor of world ``spec`` stands and looks, in the grid's local frame."""
+    x, y = (float(v) for v in scene.to_local(np.array([[spec.x, spec.y]], dtype=float))[0])
+    return place(grid, x, y, mount_height(scene, grid, spec, model, x, y), spec.pitch_deg,
+                 spec.yaw_deg)  # fmt: skip
 
 
 def evaluate_layout(
@@ -86,14 +110,7 @@ def evaluate_layout(
                 f"sensor {k} at ({spec.x:g}, {spec.y:g}) stands outside every sensor area"
             )
         model = models[k - 1]
-        height = spec.height_m
-        if height is None and spec.z is not None:
-            ground = float(grid.ground_z(np.array([[x, y]]))[0])
-            height = max(spec.z - scene.origin[2] - ground, 0.0)
-        if height is None and area is not None:
-            height = area.height_m
-        if height is None:
-            height = model.mount_height_m
+        height = mount_height(scene, grid, spec, model, x, y)
         if height >= model.range_m:
             warnings.append(
                 f"sensor {k} at ({spec.x:g}, {spec.y:g}) is mounted {height:g} m high, not "

@@ -1,0 +1,112 @@
+"""Live re-scoring measured: ``python -m tools.live_bench [--plan result.json]``.
+
+On ``two_routes`` with a plan (``--plan``: a result.json; default: the default
+optimization's plan, made first, about 2 minutes), the ``core.live.LiveLayout`` is
+built once, then 50 random moves (``--moves``) of one sensor each are re-scored: a
+sensor picked at random moved by up to 15 m in x and y, turned by up to 60 deg of yaw,
+its pitch anywhere in its model's limits. Printed and written to ``bench/live.json``:
+the build's seconds and the memory it holds (resident memory before and after), each
+move's milliseconds (median, 95th percentile, most), and whether the counts after the
+moves equal a full evaluation of the same poses (``evaluate_layout``, as ``headless
+coverage`` runs it), point for point.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import replace
+from datetime import date
+from pathlib import Path
+
+import numpy as np
+
+from autoscoop_blender.core.evaluate import evaluate_layout
+from autoscoop_blender.core.live import LiveLayout
+from autoscoop_blender.core.machine import resident_bytes
+from autoscoop_blender.core.settings import CoverageSettings
+from autoscoop_blender.io.sensor_file import read_sensors
+from headless.files import load_scene
+from headless.paths import REPO, SAMPLES
+from tools.machine import machine_line
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--plan", help="a result.json on two_routes (default: made first)")
+    parser.add_argument("--moves", type=int, default=50)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--out", default=str(REPO / "bench" / "live.json"))
+    args = parser.parse_args(argv)
+    scene_path = SAMPLES / "two_routes.blend"
+    with tempfile.TemporaryDirectory(prefix="live-bench-") as tmp:
+        plan = Path(args.plan) if args.plan else default_plan(scene_path, Path(tmp))
+        specs = read_sensors(plan)
+    scene, factory = load_scene(str(scene_path), max(s.model.range_m for s in specs))
+    caster = factory()
+    settings = CoverageSettings()
+
+    before = resident_bytes()
+    t0 = time.perf_counter()
+    live = LiveLayout(scene, caster, specs, settings)
+    build_s = time.perf_counter() - t0
+    held = resident_bytes() - before
+
+    rng = np.random.default_rng(args.seed)
+    times = []
+    for _ in range(args.moves):
+        i = int(rng.integers(len(live.specs)))
+        s = live.specs[i]
+        lo, hi = s.model.pitch_min_deg, s.model.pitch_max_deg
+        moved = replace(
+            s,
+            x=s.x + float(rng.uniform(-15, 15)),
+            y=s.y + float(rng.uniform(-15, 15)),
+            pitch_deg=float(rng.uniform(lo, hi)),
+            yaw_deg=(s.yaw_deg + float(rng.uniform(-60, 60))) % 360.0,
+        )
+        live.move(i, moved)
+        times.append(live.last_s * 1000.0)
+    whole = evaluate_layout(scene, caster, live.specs, settings)
+    agree = bool(np.array_equal(live.counts, whole.n_covered))
+
+    ms = np.array(times)
+    figures = {
+        "date": date.today().isoformat(),
+        "machine": machine_line(),
+        "command": "python -m tools.live_bench" + (f" --plan {args.plan}" if args.plan else ""),
+        "scene": "two_routes",
+        "sensors": len(live.specs),
+        "target_points": int(len(live.counts)),
+        "build_s": round(build_s, 2),
+        "held_mb": round(held / 2**20, 1),
+        "moves": args.moves,
+        "move_ms_median": round(float(np.median(ms)), 1),
+        "move_ms_p95": round(float(np.percentile(ms, 95)), 1),
+        "move_ms_max": round(float(ms.max()), 1),
+        "counts_equal_full_evaluation": agree,
+    }
+    Path(args.out).write_text(json.dumps(figures, indent=1) + "\n")
+    print(
+        f"two_routes, {figures['sensors']} sensors: built in {build_s:.2f} s, holding "
+        f"{figures['held_mb']} MB; {args.moves} moves: median {figures['move_ms_median']} ms, "
+        f"95th percentile {figures['move_ms_p95']} ms, most {figures['move_ms_max']} ms; "
+        f"counts equal to a full evaluation: {agree} -> {args.out}"
+    )
+    return 0 if agree else 1
+
+
+def default_plan(scene: Path, tmp: Path) -> Path:
+    """The default optimization's plan of ``scene`` (its result.json)."""
+    out = tmp / "plan"
+    cmd = [sys.executable, "-m", "headless", "optimize", str(scene), "--out-dir", str(out)]
+    subprocess.run(cmd, cwd=REPO, check=True, capture_output=True)
+    return out / "result.json"
+
+
+if __name__ == "__main__":
+    sys.exit(main())
