@@ -7,7 +7,7 @@ Blender-free ``core`` package can be used (and tested) without bpy.
 import importlib
 
 # Blender glue modules, registered in this order and unregistered in reverse.
-_GLUE_MODULES: tuple[str, ...] = ("props", "ops", "import_ops", "ui")
+_GLUE_MODULES: tuple[str, ...] = ("props", "ops", "import_ops", "ui", "scene.live")
 
 
 def register() -> None:

@@ -213,6 +213,8 @@ class AUTOSCOOP_PG_settings(bpy.types.PropertyGroup):
 
     # --- results -----------------------------------------------------------------
     result_json: StringProperty(default="")  # type: ignore[valid-type]
+    # Why the last live re-score could not run (``scene/live.py``), "" when it ran.
+    live_error: StringProperty(default="")  # type: ignore[valid-type]
     show_frusta: BoolProperty(name="Frusta", default=True, update=_toggle_results)  # type: ignore[valid-type]
     show_footprints: BoolProperty(name="Footprints", default=True, update=_toggle_results)  # type: ignore[valid-type]
     show_coverage: BoolProperty(name="Coverage", default=True, update=_toggle_results)  # type: ignore[valid-type]

@@ -9,7 +9,7 @@ import bpy
 
 from . import names
 from .core.settings import PANEL_SETTINGS
-from .scene import pipeline
+from .scene import live, pipeline
 
 
 class _Panel:
@@ -178,6 +178,17 @@ class AUTOSCOOP_PT_results(_Panel, bpy.types.Panel):
             grid.label(text="-" if value is None else fmt.format(value))
         if doc.get("stop_reason"):
             layout.label(text=doc["stop_reason"], icon="INFO")
+        if doc.get("edited"):
+            layout.label(text="Edited by hand: the bound is the optimizer's plan's", icon="INFO")
+        if props.live_error:
+            layout.label(text=props.live_error, icon="ERROR")
+        active = context.active_object
+        mine = live.alone(context.scene.name, active.name) if active else None
+        if mine is not None:
+            covers, share, lost = mine
+            box = layout.box()
+            box.label(text=f"{active.name}: covers {covers:,.0f} m² ({share:.1%} of the target)")
+            box.label(text=f"Without it the plan loses {lost:,.0f} m²")
         row = layout.row(align=True)
         row.prop(props, "show_frusta", toggle=True)
         row.prop(props, "show_footprints", toggle=True)

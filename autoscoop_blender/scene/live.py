@@ -1,0 +1,236 @@
+"""Live coverage in the viewport: when a sensor camera moves, turns, or is re-parented,
+its coverage is evaluated again and the Results panel, ``scene.autoscoop.result_json``
+and the coverage colouring follow, without a button.
+
+The layout (``core.live.LiveLayout``: the ground grid, the evaluator, each sensor's
+covered points and the counts) is cached per scene by name, built at the first
+change after an Optimize or Evaluate, and dropped when the scene's own geometry
+changes (a mesh or curve outside the results moves or is edited), when the sensors
+are added or removed, or when another file is opened.
+
+The ``depsgraph_update_post`` handler only notes which scene changed; the work runs:
+- in background mode (scripts, ``blender --background``), in the handler itself, so a
+  script that moves a camera and calls ``view_layer.update()`` reads the new metrics;
+- with a user interface, in a timer 50 ms later, once for all the changes made by
+  then (a drag gives many updates; at most one evaluation is in flight).
+
+Nothing here keeps a Blender ID: only names and numpy.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from typing import Any
+
+import bpy
+import numpy as np
+
+from ..core.errors import AutoscoopError
+from ..core.live import LiveLayout
+from ..core.model.sensors import SensorSpec
+from . import pipeline
+from .extract import extract_scene
+from .factory import BVHFactory
+from .spawn import COVERAGE_ATTR, COVERAGE_COLOR_ATTR, COVERAGE_NAME, coverage_colors, find_results
+
+# Seconds between the first change and the re-score, with a user interface.
+DELAY_S = 0.05
+
+
+@dataclass
+class _Entry:
+    """A scene's cached layout and which camera is which sensor (by name)."""
+
+    live: LiveLayout
+    cameras: list[str]
+
+
+_CACHE: dict[str, _Entry] = {}
+_PENDING: set[str] = set()
+
+
+def cached(scene_name: str) -> LiveLayout | None:
+    """The scene's live layout, if one is cached."""
+    entry = _CACHE.get(scene_name)
+    return entry.live if entry else None
+
+
+def alone(scene_name: str, camera: str) -> tuple[float, float, float] | None:
+    """What the sensor camera named ``camera`` covers in the cached layout: (m^2, share
+    of the target, m^2 the layout would lose without it); None when not cached."""
+    entry = _CACHE.get(scene_name)
+    if entry is None or camera not in entry.cameras:
+        return None
+    a = entry.live.alone(entry.cameras.index(camera))
+    return a.covers_m2, a.share, a.lost_m2
+
+
+def forget(scene_name: str | None = None) -> None:
+    """Drop the cached layout of a scene (None: of every scene)."""
+    if scene_name is None:
+        _CACHE.clear()
+        _PENDING.clear()
+    else:
+        _CACHE.pop(scene_name, None)
+
+
+def _sensor_names(scene: bpy.types.Scene) -> set[str]:
+    return {o.name for o in pipeline.sensor_cameras(scene)}
+
+
+def _is_results(obj: bpy.types.Object, results: bpy.types.Collection | None) -> bool:
+    return results is not None and obj.name in results.all_objects
+
+
+@bpy.app.handlers.persistent
+def on_depsgraph(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph) -> None:
+    """depsgraph_update_post: note a moved sensor camera (re-score), or drop the cache
+    when the scene's own geometry changed."""
+    if not scene.autoscoop.result_json:
+        return  # no plan or evaluation to keep current
+    results = find_results(scene)
+    sensors: set[str] | None = None
+    moved = False
+    for update in depsgraph.updates:
+        obj = update.id
+        if not isinstance(obj, bpy.types.Object):
+            continue
+        obj = obj.original
+        if sensors is None:
+            sensors = _sensor_names(scene)
+        if obj.name in sensors or obj.type == "EMPTY":  # a sensor, or a mast it is on
+            moved = moved or update.is_updated_transform or update.is_updated_geometry
+        elif obj.type in {"MESH", "CURVE"} and not _is_results(obj, results):
+            if update.is_updated_geometry or update.is_updated_transform:
+                forget(scene.name)  # a wall, the terrain or an area changed
+                moved = True
+    if not moved:
+        return
+    _PENDING.add(scene.name)
+    if bpy.app.background:
+        run_pending()
+    elif not bpy.app.timers.is_registered(run_pending):
+        bpy.app.timers.register(run_pending, first_interval=DELAY_S)
+
+
+def run_pending() -> None:
+    """Re-score every scene noted as changed (a timer: returns None, runs once)."""
+    names = list(_PENDING)
+    _PENDING.clear()
+    for name in names:
+        scene = bpy.data.scenes.get(name)
+        if scene is None:
+            forget(name)
+            continue
+        try:
+            rescore(scene)
+        except AutoscoopError as e:  # a camera's model that does not read: say so
+            scene.autoscoop.live_error = str(e)
+    return None
+
+
+def rescore(scene: bpy.types.Scene) -> dict[str, Any] | None:
+    """Bring the scene's metrics and coverage colouring up to date with its sensor
+    cameras as they stand; the new metrics (None: no sensors)."""
+    cams = pipeline.sensor_cameras(scene)
+    if not cams:
+        forget(scene.name)
+        return None
+    props = scene.autoscoop
+    specs = [pipeline.camera_spec(o, pipeline.model_from(props)) for o in cams]
+    names = [o.name for o in cams]
+    entry = _CACHE.get(scene.name)
+    if entry is None or entry.cameras != names or _out_of_reach(entry.live, specs):
+        entry = _Entry(_build(scene, specs), names)
+        _CACHE[scene.name] = entry
+    else:
+        for i, spec in enumerate(specs):
+            if spec != entry.live.specs[i]:
+                entry.live.move(i, spec)
+    metrics = entry.live.metrics()
+    _write_metrics(scene, metrics)
+    _color(scene, entry.live.counts)
+    props.live_error = ""
+    return metrics
+
+
+def _out_of_reach(live: LiveLayout, specs: list[SensorSpec]) -> bool:
+    return max(s.model.range_m for s in specs) > live.reach_m
+
+
+def _build(scene: bpy.types.Scene, specs: list[SensorSpec]) -> LiveLayout:
+    props = scene.autoscoop
+    reach = max(s.model.range_m for s in specs)
+    model = extract_scene(scene).cropped(reach)
+    settings = pipeline.settings_from(props)
+    return LiveLayout(
+        model,
+        BVHFactory.of(model)(),
+        specs,
+        pipeline.coverage_settings_from(props),
+        reach_m=reach,
+        mast_cost=settings.mast_cost,
+        sensor_cost=settings.sensor_cost,
+    )
+
+
+def _write_metrics(scene: bpy.types.Scene, metrics: dict[str, Any]) -> None:
+    """The layout's metrics into the scene's result, marked as edited by hand when they
+    differ from what the optimizer or Evaluate found: a bound stays the optimizer's."""
+    props = scene.autoscoop
+    doc = json.loads(props.result_json)
+    old = doc.setdefault("metrics", {})
+    new = {k: metrics[k] for k in ("coverage_fraction", "covered_m2", "sensors", "masts")}
+    if "cost" in old:
+        new["cost"] = metrics["cost"]
+    if all(old.get(k) == v for k, v in new.items()):
+        return  # as planned or evaluated (the spawn's own update comes here)
+    old.update(new, uncovered_m2=metrics["uncovered_m2"])
+    if old.get("lower_bound") is not None:
+        doc["bound_is_the_optimizers"] = True  # of the plan as optimized, not as edited
+    doc["edited"] = True
+    props.result_json = json.dumps(doc)
+
+
+def _color(scene: bpy.types.Scene, counts: np.ndarray) -> None:
+    """The coverage points' counts and colours, where the mesh holds one face a point."""
+    results = find_results(scene)
+    if results is None:
+        return
+    obj = next((o for o in results.all_objects if o.name.startswith(COVERAGE_NAME)), None)
+    if obj is None or obj.type != "MESH" or len(obj.data.polygons) != len(counts):
+        return
+    mesh = obj.data
+    values = np.asarray(counts, dtype=np.int32)
+    mesh.attributes[COVERAGE_ATTR].data.foreach_set("value", values)
+    rgba = np.repeat(coverage_colors(values), 4, axis=0).ravel()
+    mesh.color_attributes[COVERAGE_COLOR_ATTR].data.foreach_set("color_srgb", rgba)
+    mesh.update()
+
+
+@bpy.app.handlers.persistent
+def on_load(*_args: Any) -> None:
+    """load_post: another file, other scenes."""
+    forget()
+
+
+HANDLERS = (
+    (bpy.app.handlers.depsgraph_update_post, on_depsgraph),
+    (bpy.app.handlers.load_post, on_load),
+)
+
+
+def register() -> None:
+    for handlers, fn in HANDLERS:
+        if fn not in handlers:
+            handlers.append(fn)
+
+
+def unregister() -> None:
+    for handlers, fn in HANDLERS:
+        if fn in handlers:
+            handlers.remove(fn)
+    if bpy.app.timers.is_registered(run_pending):
+        bpy.app.timers.unregister(run_pending)
+    forget()

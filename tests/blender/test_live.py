@@ -1,0 +1,152 @@
+"""Live coverage (``scene/live.py``): a sensor camera moved by a script changes the
+metrics and the coverage colouring to exactly what a full evaluation of the new
+poses gives; undo brings the old ones back; a new wall is seen; nothing is left
+registered after the add-on goes."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import bpy
+import numpy as np
+import pytest
+from mathutils import Matrix
+
+import autoscoop_blender
+from autoscoop_blender import names
+from autoscoop_blender.core.evaluate import evaluate_layout
+from autoscoop_blender.scene import live, pipeline
+from autoscoop_blender.scene.extract import extract_scene
+from autoscoop_blender.scene.factory import BVHFactory
+from autoscoop_blender.scene.spawn import COVERAGE_ATTR, COVERAGE_NAME
+from tests.blender.conftest import SAMPLES
+
+
+@pytest.fixture(autouse=True)
+def registered():
+    autoscoop_blender.register()
+    yield
+    autoscoop_blender.unregister()
+
+
+def _planned():
+    """flat_wall planned by greedy to 60 %: its cameras spawned, its metrics stored."""
+    bpy.ops.wm.open_mainfile(filepath=str(SAMPLES / "flat_wall.blend"))
+    props = bpy.context.scene.autoscoop
+    props.optimizer, props.rho = "greedy", 0.6
+    bpy.ops.autoscoop.optimize()
+    return props
+
+
+def _full(scene):
+    """What a full evaluation (``headless coverage``'s) of the cameras as they stand
+    gives: (coverage fraction, counts per target point)."""
+    props = scene.autoscoop
+    specs = [pipeline.camera_spec(o, pipeline.model_from(props)) for o in
+             pipeline.sensor_cameras(scene)]  # fmt: skip
+    model = extract_scene(scene).cropped(max(s.model.range_m for s in specs))
+    result = evaluate_layout(model, BVHFactory.of(model)(), specs,
+                             pipeline.coverage_settings_from(props))  # fmt: skip
+    return result.coverage_fraction, np.asarray(result.n_covered)
+
+
+def _mesh_counts(scene):
+    results = bpy.data.collections[names.RESULTS_COLLECTION]
+    mesh = next(o for o in results.all_objects if o.name.startswith(COVERAGE_NAME)).data
+    values = np.zeros(len(mesh.polygons), dtype=np.int32)
+    mesh.attributes[COVERAGE_ATTR].data.foreach_get("value", values)
+    return values
+
+
+def _move(obj, dx=0.0, dy=0.0, turn_deg=0.0):
+    """Move a camera in world x, y and turn it about the vertical, as a user would."""
+    m = obj.matrix_world.copy()
+    turn = Matrix.Rotation(math.radians(turn_deg), 4, "Z")
+    loc = m.translation.copy()
+    m = turn @ Matrix.Translation(-loc) @ m
+    m.translation = loc + type(loc)((dx, dy, 0.0))
+    obj.matrix_world = m
+    bpy.context.view_layer.update()
+
+
+def test_a_moved_camera_is_scored_again_as_a_full_evaluation_scores_it():
+    props = _planned()
+    scene = bpy.context.scene
+    before = json.loads(props.result_json)["metrics"]
+    cam = pipeline.sensor_cameras(scene)[0]
+    _move(cam, dx=-6.0, turn_deg=170.0)  # turned away from most of the target
+    after = json.loads(props.result_json)
+    fraction, counts = _full(scene)
+    assert after["metrics"]["coverage_fraction"] == pytest.approx(fraction, abs=1e-6)
+    assert after["metrics"]["coverage_fraction"] < before["coverage_fraction"]
+    assert after["edited"] is True and props.live_error == ""
+    np.testing.assert_array_equal(_mesh_counts(scene), counts)
+    np.testing.assert_array_equal(live.cached(scene.name).counts, counts)
+    # What the moved camera alone covers, and what the plan would lose without it: the
+    # points only it brings to their k, counted from the full evaluation's counts.
+    covers, share, lost = live.alone(scene.name, cam.name)
+    mine = live.cached(scene.name).covered[pipeline.sensor_cameras(scene).index(cam)]
+    assert covers == len(mine) and share == pytest.approx(len(mine) / len(counts), abs=1e-6)
+    assert lost == np.count_nonzero(counts[mine] == 1)
+    # A second move re-scores that camera alone, and again agrees.
+    _move(cam, dy=3.0, turn_deg=-90.0)
+    fraction, counts = _full(scene)
+    metrics = json.loads(props.result_json)["metrics"]
+    assert metrics["coverage_fraction"] == pytest.approx(fraction, abs=1e-6)
+    np.testing.assert_array_equal(_mesh_counts(scene), counts)
+
+
+def test_undo_of_a_move_brings_the_metrics_back():
+    props = _planned()
+    scene = bpy.context.scene
+    bpy.ops.ed.undo_push(message="planned")
+    planned = json.loads(props.result_json)["metrics"]["coverage_fraction"]
+    _move(pipeline.sensor_cameras(scene)[0], dx=-8.0, turn_deg=180.0)
+    bpy.ops.ed.undo_push(message="moved")
+    assert json.loads(props.result_json)["metrics"]["coverage_fraction"] != planned
+    bpy.ops.ed.undo()
+    bpy.context.view_layer.update()
+    scene = bpy.context.scene
+    metrics = json.loads(scene.autoscoop.result_json)["metrics"]
+    assert metrics["coverage_fraction"] == pytest.approx(planned, abs=1e-6)
+    fraction, counts = _full(scene)
+    assert fraction == pytest.approx(planned, abs=1e-6)
+
+
+def test_a_new_wall_is_seen_by_the_next_rescore():
+    props = _planned()
+    scene = bpy.context.scene
+    cam = pipeline.sensor_cameras(scene)[0]
+    _move(cam, dx=0.5)
+    first = live.cached(scene.name)
+    open_before = json.loads(props.result_json)["metrics"]["coverage_fraction"]
+    # A tall box right in front of the camera: the cache must go, and the next
+    # re-score must see the box.
+    x, y, z = cam.matrix_world.translation
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(x, y, z))
+    box = bpy.context.active_object
+    box.scale = (8.0, 8.0, 30.0)
+    bpy.context.view_layer.update()
+    _move(cam, dx=0.01)
+    assert live.cached(scene.name) is not first
+    fraction, counts = _full(scene)
+    metrics = json.loads(props.result_json)["metrics"]
+    assert metrics["coverage_fraction"] == pytest.approx(fraction, abs=1e-6)
+    assert metrics["coverage_fraction"] < open_before  # the box hides what it saw
+
+
+def test_nothing_stays_registered_and_another_file_drops_the_cache():
+    _planned()
+    scene = bpy.context.scene
+    _move(pipeline.sensor_cameras(scene)[0], dx=1.0)
+    assert live.cached(scene.name) is not None
+    bpy.ops.wm.open_mainfile(filepath=str(SAMPLES / "flat_wall.blend"))
+    assert live.cached(bpy.context.scene.name) is None
+    autoscoop_blender.unregister()
+    try:
+        assert live.on_depsgraph not in bpy.app.handlers.depsgraph_update_post
+        assert live.on_load not in bpy.app.handlers.load_post
+        assert not bpy.app.timers.is_registered(live.run_pending)
+    finally:
+        autoscoop_blender.register()
