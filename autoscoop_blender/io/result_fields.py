@@ -146,19 +146,14 @@ MAST: Fields = {
 
 SENSORS_CSV: Fields = {
     "n": ("integer", "as in result.json"),
-    "x": ("number", "position of the mast, east (3 decimals)"),
-    "y": ("number", "position of the mast, north"),
-    "z": ("number", "height of the sensor, absolute"),
-    "height_m": ("number", "height of the sensor above the ground under its mast"),
-    "pitch_deg": ("number", "depression below the horizon: positive looks down"),
-    "yaw_deg": ("number", "view direction, counter-clockwise from +x (east)"),
+    **{k: SENSOR[k] for k in ("x", "y", "z", "height_m", "pitch_deg", "yaw_deg")},
     "bearing_deg": (
         "number",
         "the same direction as a compass bearing: clockwise from the scene's +y (grid "
         "north; ``sensors.geojson`` gives it from true north when the scene has a CRS)",
     ),
     "fitness": ("number", "as in result.json"),
-    "target_covered_m2": ("number", "target area it covers on its own"),
+    "target_covered_m2": SENSOR["target_covered_m2"],
     "mast": ("integer", "the mast it is on, as in result.json"),
     "existing": ("integer", "1 when it stood already, else 0"),
     "kind": ("string", "camera, lidar or radar"),
