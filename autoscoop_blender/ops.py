@@ -16,7 +16,7 @@ from . import names
 from .core.errors import AutoscoopError
 from .core.optimize.base import Progress
 from .io.progress_text import progress_text
-from .scene import pipeline
+from .scene import live, pipeline
 
 
 def _fail(op: bpy.types.Operator, error: AutoscoopError) -> set[str]:
@@ -238,6 +238,7 @@ class AUTOSCOOP_OT_export(bpy.types.Operator):
 
     def execute(self, context: bpy.types.Context) -> set[str]:
         try:
+            live.check_export(context.scene)
             paths, note = pipeline.export(
                 context.scene, self.kind, context.scene.autoscoop.export_dir
             )

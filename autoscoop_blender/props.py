@@ -215,6 +215,11 @@ class AUTOSCOOP_PG_settings(bpy.types.PropertyGroup):
     result_json: StringProperty(default="")  # type: ignore[valid-type]
     # Why the last live re-score could not run (``scene/live.py``), "" when it ran.
     live_error: StringProperty(default="")  # type: ignore[valid-type]
+    export_misplaced: BoolProperty(  # type: ignore[valid-type]
+        name="Export Anyway",
+        default=False,
+        description="Export a plan whose sensors stand where no mast may (red in the view)",
+    )
     show_frusta: BoolProperty(name="Frusta", default=True, update=_toggle_results)  # type: ignore[valid-type]
     show_footprints: BoolProperty(name="Footprints", default=True, update=_toggle_results)  # type: ignore[valid-type]
     show_coverage: BoolProperty(name="Coverage", default=True, update=_toggle_results)  # type: ignore[valid-type]

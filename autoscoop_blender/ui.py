@@ -182,6 +182,11 @@ class AUTOSCOOP_PT_results(_Panel, bpy.types.Panel):
             layout.label(text="Edited by hand: the bound is the optimizer's plan's", icon="INFO")
         if props.live_error:
             layout.label(text=props.live_error, icon="ERROR")
+        misplaced = live.problems(context.scene.name)
+        for name, why in misplaced:
+            layout.label(text=f"{name}: stands {why}", icon="ERROR")
+        if misplaced:
+            layout.prop(props, "export_misplaced")
         active = context.active_object
         mine = live.alone(context.scene.name, active.name) if active else None
         if mine is not None:

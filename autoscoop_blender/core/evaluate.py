@@ -51,6 +51,18 @@ def mount_height(
     return area.height_m if area is not None and area.height_m is not None else model.mount_height_m
 
 
+def placement_problem(scene: SceneModel, x: float, y: float) -> str | None:
+    """Why no mast may stand at local (x, y): on or beside a no-mast zone or an object
+    standing on the ground (``sites``), or outside every sensor area; None where one
+    may."""
+    blocker = site_blockers(scene, np.array([[x, y]], dtype=float))[0]
+    if blocker is not None:
+        return f"on or beside {blocker}, where no mast may stand"
+    if area_at(scene, x, y) is None:
+        return "outside every sensor area"
+    return None
+
+
 def sensor_pose(
     scene: SceneModel, grid: GroundGrid, spec: SensorSpec, model: SensorModel
 ) -> SensorPose:

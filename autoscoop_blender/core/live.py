@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 
 from . import refusal
 from .coverage.evaluator import make_evaluator
-from .evaluate import resolve_model, sensor_pose
+from .evaluate import placement_problem, resolve_model, sensor_pose
 from .geom.grid import GroundGrid
 from .geom.raycast import RayCaster
 from .masts import group_positions
@@ -79,12 +79,18 @@ class LiveLayout:
         self.counts: I32 = np.zeros(self.grid.n_targets, dtype=np.int32)
         self.specs: list[SensorSpec] = []
         self.covered: list[I64] = []
+        # Why each sensor's mast may not stand where it does (None: it may).
+        self.problems: list[str | None] = []
         self.mast_cost, self.sensor_cost = mast_cost, sensor_cost
         self.last_s = 0.0  # seconds the last change took
         for spec in specs:
             self.add(spec)
 
     # --- changes ---------------------------------------------------------------------
+
+    def _problem(self, spec: SensorSpec) -> str | None:
+        x, y = self.scene.to_local(np.array([[spec.x, spec.y]], dtype=float))[0]
+        return placement_problem(self.scene, float(x), float(y))
 
     def _evaluate(self, spec: SensorSpec) -> I64:
         """The target ordinals ``spec`` covers (sorted, each once)."""
@@ -101,6 +107,7 @@ class LiveLayout:
         self.counts[covered] += 1
         self.specs.append(spec)
         self.covered.append(covered)
+        self.problems.append(self._problem(spec))
         self.last_s = time.perf_counter() - t0
         return len(self.specs) - 1
 
@@ -110,13 +117,15 @@ class LiveLayout:
         covered = self._evaluate(spec)
         self.counts[self.covered[i]] -= 1
         self.counts[covered] += 1
+        if (spec.x, spec.y) != (self.specs[i].x, self.specs[i].y):
+            self.problems[i] = self._problem(spec)
         self.specs[i], self.covered[i] = spec, covered
         self.last_s = time.perf_counter() - t0
 
     def remove(self, i: int) -> None:
         """Take sensor ``i`` away; the sensors after it move down one index."""
         self.counts[self.covered[i]] -= 1
-        del self.specs[i], self.covered[i]
+        del self.specs[i], self.covered[i], self.problems[i]
 
     # --- what the layout covers ------------------------------------------------------
 

@@ -26,7 +26,7 @@ from typing import Any
 import bpy
 import numpy as np
 
-from ..core.errors import AutoscoopError
+from ..core.errors import AutoscoopError, InputError
 from ..core.live import LiveLayout
 from ..core.model.sensors import SensorSpec
 from . import pipeline
@@ -36,6 +36,9 @@ from .spawn import COVERAGE_ATTR, COVERAGE_COLOR_ATTR, COVERAGE_NAME, coverage_c
 
 # Seconds between the first change and the re-score, with a user interface.
 DELAY_S = 0.05
+# A misplaced sensor camera's object colour, and where its own colour is kept.
+MISPLACED_RGBA = (1.0, 0.1, 0.1, 1.0)
+KEPT_COLOR_PROP = "autoscoop_own_color"
 
 
 @dataclass
@@ -151,8 +154,40 @@ def rescore(scene: bpy.types.Scene) -> dict[str, Any] | None:
     metrics = entry.live.metrics()
     _write_metrics(scene, metrics)
     _color(scene, entry.live.counts)
+    _mark_misplaced(cams, entry.live.problems)
     props.live_error = ""
     return metrics
+
+
+def problems(scene_name: str) -> list[tuple[str, str]]:
+    """The sensor cameras whose mast may not stand where it does, with why."""
+    entry = _CACHE.get(scene_name)
+    if entry is None:
+        return []
+    return [(c, p) for c, p in zip(entry.cameras, entry.live.problems) if p is not None]
+
+
+def check_export(scene: bpy.types.Scene) -> None:
+    """InputError naming the first misplaced sensor camera, unless the user chose to
+    export the plan anyway (``export_misplaced``)."""
+    misplaced = problems(scene.name)
+    if misplaced and not scene.autoscoop.export_misplaced:
+        name, why = misplaced[0]
+        more = f" (and {len(misplaced) - 1} more)" if len(misplaced) > 1 else ""
+        raise InputError(
+            f"{name}: stands {why}{more}; move it, or tick Export Anyway to export the plan"
+        )
+
+
+def _mark_misplaced(cams: list[bpy.types.Object], why: list[str | None]) -> None:
+    """Misplaced cameras turn red (their object colour, kept to be given back)."""
+    for obj, problem in zip(cams, why):
+        if problem is not None and KEPT_COLOR_PROP not in obj:
+            obj[KEPT_COLOR_PROP] = list(obj.color)
+            obj.color = MISPLACED_RGBA
+        elif problem is None and KEPT_COLOR_PROP in obj:
+            obj.color = obj[KEPT_COLOR_PROP]
+            del obj[KEPT_COLOR_PROP]
 
 
 def _out_of_reach(live: LiveLayout, specs: list[SensorSpec]) -> bool:

@@ -359,6 +359,10 @@ def export(scene: bpy.types.Scene, kind: str, folder: str) -> tuple[list[Path], 
     the scene's CRS also sensors.geojson (WGS84) and plan.gpkg (``reports.gis_files``)."""
     layout = last_layout(scene)
     if layout is None:
+        if scene.autoscoop.result_json and json.loads(scene.autoscoop.result_json).get("edited"):
+            raise InputError(
+                "the plan was edited by hand: press Evaluate to export it as it stands"
+            )
         raise InputError("no result in this session: run Optimize or Evaluate first")
     result, doc = layout
     out = Path(bpy.path.abspath(folder or "//"))

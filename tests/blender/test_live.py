@@ -150,3 +150,27 @@ def test_nothing_stays_registered_and_another_file_drops_the_cache():
         assert not bpy.app.timers.is_registered(live.run_pending)
     finally:
         autoscoop_blender.register()
+
+
+def test_a_sensor_moved_out_of_its_area_turns_red_and_export_waits(tmp_path):
+    """Moved 30 m off the 8 x 8 m sensor area: red, the panel's reason, and Export
+    refused in one line naming it, until it is moved back or exported anyway."""
+    props = _planned()
+    props.export_dir = str(tmp_path)
+    scene = bpy.context.scene
+    cam = pipeline.sensor_cameras(scene)[0]
+    own = tuple(cam.color)
+    _move(cam, dx=30.0)
+    assert live.problems(scene.name) == [(cam.name, "outside every sensor area")]
+    assert tuple(cam.color) == pytest.approx(live.MISPLACED_RGBA)
+    name = cam.name
+    bpy.ops.autoscoop.evaluate()  # the plan as it stands, for the export (new cameras)
+    with pytest.raises(RuntimeError, match=f"{name}: stands outside every sensor area"):
+        bpy.ops.autoscoop.export(kind="JSON")
+    assert not (tmp_path / "result.json").exists()
+    props.export_misplaced = True
+    assert bpy.ops.autoscoop.export(kind="JSON") == {"FINISHED"}
+    cam = scene.objects[name]
+    assert tuple(cam.color) == pytest.approx(live.MISPLACED_RGBA)
+    _move(cam, dx=-30.0)
+    assert live.problems(scene.name) == [] and tuple(cam.color) == pytest.approx(own)

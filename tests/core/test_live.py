@@ -5,12 +5,15 @@ worked out by hand."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
+import shapely
 
 from autoscoop_blender.core.evaluate import evaluate_layout
 from autoscoop_blender.core.live import LiveLayout
+from autoscoop_blender.core.model.scene import Area
 from autoscoop_blender.core.model.sensors import SensorModel, SensorSpec
 from autoscoop_blender.core.settings import CoverageSettings
 from tests.core.flat import box_caster, flat_scene
@@ -93,3 +96,20 @@ def test_moves_give_what_a_full_evaluation_gives(seed):
         assert live.metrics()["coverage_fraction"] == whole.metrics["coverage_fraction"]
         assert live.metrics()["masts"] == whole.metrics["masts"]
     assert live.counts.max() >= 1 and live.counts.sum() > 0  # the moves saw something
+
+
+def test_a_sensor_says_why_its_mast_may_not_stand_where_it_does():
+    """A no-mast zone over x 40..50: a mast there may not stand; nor one outside the
+    sensor area (y beyond 25); one in the area may."""
+    scene = flat_scene(target=(0.0, -20.0, 60.0, 20.0), sensor=(-5.0, -25.0, 65.0, 25.0))
+    lane = Area("NoMast_Lane", shapely.box(40.0, -25.0, 50.0, 25.0))
+    scene = replace(scene, no_mast=(lane,))
+    live = LiveLayout(scene, box_caster()(), [down(10, 0)], CoverageSettings())
+    assert live.problems == [None]
+    live.move(0, down(45, 0))
+    assert live.problems == ["on or beside NoMast_Lane, where no mast may stand"]
+    live.move(0, down(10, 40))
+    assert live.problems == ["outside every sensor area"]
+    live.add(down(20, 0))
+    live.remove(0)
+    assert live.problems == [None]
