@@ -268,6 +268,28 @@ class AUTOSCOOP_OT_clear_results(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class AUTOSCOOP_OT_snap_to_mast(bpy.types.Operator):
+    """Move the active sensor camera to the nearest place its mast may stand: in a
+    sensor area, off no-mast zones and objects standing on the ground"""
+
+    bl_idname = names.OP_SNAP
+    bl_label = "Snap to Mast"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        obj = context.active_object
+        return obj is not None and obj.type == "CAMERA"
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        try:
+            text = live.snap(context.scene, context.active_object)
+        except AutoscoopError as e:
+            return _fail(self, e)
+        self.report({"INFO"}, text)
+        return {"FINISHED"}
+
+
 classes = (
     AUTOSCOOP_OT_optimize,
     AUTOSCOOP_OT_evaluate,
@@ -275,5 +297,6 @@ classes = (
     AUTOSCOOP_OT_check,
     AUTOSCOOP_OT_export,
     AUTOSCOOP_OT_clear_results,
+    AUTOSCOOP_OT_snap_to_mast,
 )
 register, unregister = bpy.utils.register_classes_factory(classes)

@@ -194,6 +194,7 @@ class AUTOSCOOP_PT_results(_Panel, bpy.types.Panel):
             box = layout.box()
             box.label(text=f"{active.name}: covers {covers:,.0f} m² ({share:.1%} of the target)")
             box.label(text=f"Without it the plan loses {lost:,.0f} m²")
+            box.operator(names.OP_SNAP)
         row = layout.row(align=True)
         row.prop(props, "show_frusta", toggle=True)
         row.prop(props, "show_footprints", toggle=True)

@@ -15,9 +15,11 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
+import shapely
+import shapely.ops
 from numpy.typing import NDArray
 
 from . import refusal
@@ -30,6 +32,10 @@ from .model.scene import SceneModel
 from .model.sensors import SensorSpec
 from .problem import point_need
 from .settings import CoverageSettings
+
+# How far inside the allowed ground a snapped sensor's mast stands, m: on the border a
+# mast would touch the zone or the object it must keep off.
+SNAP_INSET_M = 0.05
 
 I32 = NDArray[np.int32]
 I64 = NDArray[np.int64]
@@ -121,6 +127,26 @@ class LiveLayout:
             self.problems[i] = self._problem(spec)
         self.specs[i], self.covered[i] = spec, covered
         self.last_s = time.perf_counter() - t0
+
+    def snapped(self, i: int) -> SensorSpec | None:
+        """Sensor ``i`` moved to the nearest place a mast may stand (in a sensor area,
+        off no-mast zones and standing objects, ``SNAP_INSET_M`` inside the border) at
+        the same height above the ground; None when there is none within its range."""
+        spec = self.specs[i]
+        here = self.scene.to_local(np.array([[spec.x, spec.y]], dtype=float))[0]
+        allowed = shapely.union_all([a.geometry for a in self.scene.sensor_areas])
+        inset = allowed.buffer(-SNAP_INSET_M)
+        region = allowed if inset.is_empty else inset
+        point = shapely.Point(*here)
+        if region.is_empty or region.distance(point) > spec.model.range_m:
+            return None
+        if self._problem(spec) is None:
+            return spec  # where a mast may stand already
+        site = shapely.ops.nearest_points(region, point)[0]
+        ground = self.grid.ground_z(np.array([here, (site.x, site.y)]))
+        world = self.scene.to_world(np.array([[site.x, site.y]]))[0]
+        z = None if spec.z is None else spec.z + float(ground[1] - ground[0])
+        return replace(spec, x=float(world[0]), y=float(world[1]), z=z)
 
     def remove(self, i: int) -> None:
         """Take sensor ``i`` away; the sensors after it move down one index."""

@@ -159,6 +159,28 @@ def rescore(scene: bpy.types.Scene) -> dict[str, Any] | None:
     return metrics
 
 
+def snap(scene: bpy.types.Scene, obj: bpy.types.Object) -> str:
+    """Move the sensor camera ``obj`` to the nearest place its mast may stand, at the
+    same height above the ground (``LiveLayout.snapped``); what was done, in words.
+    InputError when ``obj`` is no sensor camera or no such place is within its range."""
+    rescore(scene)
+    entry = _CACHE.get(scene.name)
+    if entry is None or obj.name not in entry.cameras:
+        raise InputError(f"{obj.name}: not a sensor camera (run Optimize, or mark it a sensor)")
+    i = entry.cameras.index(obj.name)
+    spec = entry.live.snapped(i)
+    if spec is None:
+        reach = entry.live.specs[i].model.range_m
+        raise InputError(f"{obj.name}: no place a mast may stand within its range of {reach:g} m")
+    if spec == entry.live.specs[i]:
+        return f"{obj.name} stands where a mast may already"
+    m = obj.matrix_world.copy()
+    m.translation = (spec.x, spec.y, spec.z if spec.z is not None else m.translation.z)
+    obj.matrix_world = m
+    bpy.context.view_layer.update()
+    return f"{obj.name} moved to ({spec.x:.2f}, {spec.y:.2f})"
+
+
 def problems(scene_name: str) -> list[tuple[str, str]]:
     """The sensor cameras whose mast may not stand where it does, with why."""
     entry = _CACHE.get(scene_name)

@@ -172,5 +172,19 @@ def test_a_sensor_moved_out_of_its_area_turns_red_and_export_waits(tmp_path):
     assert bpy.ops.autoscoop.export(kind="JSON") == {"FINISHED"}
     cam = scene.objects[name]
     assert tuple(cam.color) == pytest.approx(live.MISPLACED_RGBA)
-    _move(cam, dx=-30.0)
+    # Snap to Mast brings it back onto the sensor area (x -12..-4, y -4..4), to the
+    # border nearest to it less the inset, at its height above the flat ground; one
+    # undo step takes the snap back.
+    bpy.ops.ed.undo_push(message="moved out")
+    bpy.context.view_layer.objects.active = cam
+    z = cam.matrix_world.translation.z
+    assert bpy.ops.autoscoop.snap_to_mast() == {"FINISHED"}
+    bpy.ops.ed.undo_push(message="snapped")
+    cam = scene.objects[name]
+    x, y, _ = cam.matrix_world.translation
+    assert x == pytest.approx(-4.05, abs=1e-4) and -4.0 < y < 4.0
+    assert cam.matrix_world.translation.z == pytest.approx(z)
     assert live.problems(scene.name) == [] and tuple(cam.color) == pytest.approx(own)
+    bpy.ops.ed.undo()
+    bpy.context.view_layer.update()
+    assert bpy.context.scene.objects[name].matrix_world.translation.x > 20.0

@@ -113,3 +113,28 @@ def test_a_sensor_says_why_its_mast_may_not_stand_where_it_does():
     live.add(down(20, 0))
     live.remove(0)
     assert live.problems == [None]
+
+
+def test_snapping_moves_a_mast_to_the_nearest_place_it_may_stand():
+    """In the no-mast zone x 40..50 at x = 44 the nearest allowed ground is x = 40
+    (less the inset); beyond the area at y = 40 it is y = 25; a sensor where a mast
+    may stand stays; a sensor area out of range is no place to snap to."""
+    scene = flat_scene(target=(0.0, -20.0, 60.0, 20.0), sensor=(-5.0, -25.0, 65.0, 25.0))
+    scene = replace(scene, no_mast=(Area("NoMast_Lane", shapely.box(40.0, -25.0, 50.0, 25.0)),))
+    # (The extraction cuts the zone out of the areas: here by hand.)
+    cut = shapely.difference(scene.sensor_areas[0].geometry, scene.no_mast[0].geometry)
+    scene = replace(scene, sensor_areas=(Area("SensorArea", cut),))
+    live = LiveLayout(scene, box_caster()(), [down(44, 3), down(10, 40)], CoverageSettings())
+    inset = 0.05
+    first = live.snapped(0)
+    assert (first.x, first.y) == pytest.approx((40.0 - inset, 3.0), abs=1e-6)
+    assert first.height_m == live.specs[0].height_m
+    second = live.snapped(1)
+    assert (second.x, second.y) == pytest.approx((10.0, 25.0 - inset), abs=1e-6)
+    live.move(0, first)
+    live.move(1, second)
+    assert live.problems == [None, None]
+    assert live.snapped(0) == live.specs[0]  # already where a mast may stand
+    far = down(10, 25.0 + DOWN.range_m + 5.0)
+    live.move(1, far)
+    assert live.snapped(1) is None
