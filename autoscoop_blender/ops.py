@@ -290,6 +290,23 @@ class AUTOSCOOP_OT_snap_to_mast(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class AUTOSCOOP_OT_fill_gap(bpy.types.Operator):
+    """Add the one sensor (the panel's model) that covers the most of what is uncovered
+    now: on a standing mast first, else on a new one where a mast may stand"""
+
+    bl_idname = names.OP_FILL
+    bl_label = "Fill Largest Gap"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        try:
+            text = live.fill_gap(context.scene)
+        except AutoscoopError as e:
+            return _fail(self, e)
+        self.report({"INFO"}, text)
+        return {"FINISHED"}
+
+
 classes = (
     AUTOSCOOP_OT_optimize,
     AUTOSCOOP_OT_evaluate,
@@ -298,5 +315,6 @@ classes = (
     AUTOSCOOP_OT_export,
     AUTOSCOOP_OT_clear_results,
     AUTOSCOOP_OT_snap_to_mast,
+    AUTOSCOOP_OT_fill_gap,
 )
 register, unregister = bpy.utils.register_classes_factory(classes)

@@ -74,6 +74,27 @@ def main(argv: list[str] | None = None) -> int:
     whole = evaluate_layout(scene, caster, live.specs, settings)
     agree = bool(np.array_equal(live.counts, whole.n_covered))
 
+    # Filling a gap: the plan again, 3 sensors deleted, the best one added.
+    gap = LiveLayout(scene, caster, specs, settings)
+    full_m2 = gap.metrics()["covered_m2"]
+    deleted = sorted((int(i) for i in rng.choice(len(specs), 3, replace=False)), reverse=True)
+    for i in deleted:
+        gap.remove(i)
+    holed_m2 = gap.metrics()["covered_m2"]
+    # What limits one sensor: each deleted one, put back alone, brings back this much.
+    alone_m2 = []
+    for i in deleted:
+        gap.add(specs[i])
+        alone_m2.append(gap.metrics()["covered_m2"] - holed_m2)
+        gap.remove(len(gap.specs) - 1)
+    t0 = time.perf_counter()
+    add = gap.best_addition(specs[0].model)
+    fill_s = time.perf_counter() - t0
+    if add is not None:
+        gap.add(add.spec)
+    filled_m2 = gap.metrics()["covered_m2"]
+    recovered = (filled_m2 - holed_m2) / (full_m2 - holed_m2) if full_m2 > holed_m2 else 1.0
+
     ms = np.array(times)
     figures = {
         "date": date.today().isoformat(),
@@ -89,13 +110,22 @@ def main(argv: list[str] | None = None) -> int:
         "move_ms_p95": round(float(np.percentile(ms, 95)), 1),
         "move_ms_max": round(float(ms.max()), 1),
         "counts_equal_full_evaluation": agree,
+        "fill_s": round(fill_s, 2),
+        "fill_lost_m2": round(full_m2 - holed_m2, 1),
+        "fill_recovered_m2": round(filled_m2 - holed_m2, 1),
+        "fill_recovered_share": round(recovered, 3),
+        "fill_on_standing_mast": bool(add and add.on_standing_mast),
+        "deleted_alone_m2": [round(a, 1) for a in alone_m2],
     }
     Path(args.out).write_text(json.dumps(figures, indent=1) + "\n")
     print(
         f"two_routes, {figures['sensors']} sensors: built in {build_s:.2f} s, holding "
         f"{figures['held_mb']} MB; {args.moves} moves: median {figures['move_ms_median']} ms, "
         f"95th percentile {figures['move_ms_p95']} ms, most {figures['move_ms_max']} ms; "
-        f"counts equal to a full evaluation: {agree} -> {args.out}"
+        f"counts equal to a full evaluation: {agree}; 3 sensors deleted lose "
+        f"{figures['fill_lost_m2']} m^2, the best one added in {fill_s:.2f} s recovers "
+        f"{figures['fill_recovered_m2']} m^2 ({recovered:.0%}; each deleted sensor alone "
+        f"brings back {', '.join(f'{a:g}' for a in alone_m2)} m^2) -> {args.out}"
     )
     return 0 if agree else 1
 

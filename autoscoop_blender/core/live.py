@@ -13,6 +13,7 @@ Positions are world metres (``SensorSpec``); areas m^2.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
@@ -23,22 +24,45 @@ import shapely.ops
 from numpy.typing import NDArray
 
 from . import refusal
-from .coverage.evaluator import make_evaluator
-from .evaluate import placement_problem, resolve_model, sensor_pose
+from .coverage.base import place
+from .coverage.evaluator import Evaluator, make_evaluator
+from .evaluate import mount_height, placement_problem, resolve_model, sensor_pose
 from .geom.grid import GroundGrid
 from .geom.raycast import RayCaster
 from .masts import group_positions
 from .model.scene import SceneModel
-from .model.sensors import SensorSpec
+from .model.sensors import SensorModel, SensorSpec
+from .model.sites import site_blockers
 from .problem import point_need
+from .result import uncovered_parts
 from .settings import CoverageSettings
 
+# Filling a gap (``best_addition``): places tried beyond the standing masts, their
+# lattice, m, and the orientations at each (as the candidate set's: yaw every 10 deg,
+# six pitches), searched coarse to fine.
+FILL_SITES = 40
+FILL_STEP_M = 2.0
+FILL_YAW_DEG = 10
+FILL_PITCHES = 6
+FILL_COARSE_YAW_DEG = 30
+FILL_REFINE = 3
 # How far inside the allowed ground a snapped sensor's mast stands, m: on the border a
 # mast would touch the zone or the object it must keep off.
 SNAP_INSET_M = 0.05
 
+F64 = NDArray[np.float64]
 I32 = NDArray[np.int32]
 I64 = NDArray[np.int64]
+
+
+@dataclass(frozen=True)
+class Addition:
+    """A sensor to add (``spec``, world metres), the target points short of their k it
+    raises, and whether it goes on a mast that stands already."""
+
+    spec: SensorSpec
+    gain_points: int
+    on_standing_mast: bool
 
 
 @dataclass(frozen=True)
@@ -80,7 +104,10 @@ class LiveLayout:
             scene, caster, self.settings.grid_m, self.settings.target_height_m, self.reach_m,
             check=False,
         )  # fmt: skip
+        self.caster = caster
         self.evaluator = make_evaluator(self.settings, self.grid, caster)
+        self._search: Evaluator | None = None  # a cached evaluator, to fill gaps
+        self._standing_sites = 0
         self.need: I32 = point_need(self.grid, self.settings.coverage_k)
         self.counts: I32 = np.zeros(self.grid.n_targets, dtype=np.int32)
         self.specs: list[SensorSpec] = []
@@ -148,6 +175,85 @@ class LiveLayout:
         z = None if spec.z is None else spec.z + float(ground[1] - ground[0])
         return replace(spec, x=float(world[0]), y=float(world[1]), z=z)
 
+    def best_addition(
+        self, model: SensorModel, most_sites: int = FILL_SITES, step_m: float = FILL_STEP_M
+    ) -> Addition | None:
+        """The one sensor of ``model`` that raises the most target points now short of
+        their k, searched at the masts standing first (a sensor there adds no mast),
+        then at up to ``most_sites`` places a mast may stand on a ``step_m`` lattice,
+        the nearest to the largest uncovered patch first. Coarse to fine: every site at
+        yaws ``FILL_COARSE_YAW_DEG`` apart and three pitches, then the ``FILL_REFINE``
+        best sites at every 10 deg within one coarse step and six pitches over the
+        model's limits (the candidate set's orientations). None when nothing is
+        uncovered or no site sees any of it."""
+        short = self.counts < self.need
+        if not short.any():
+            return None
+        sites = self._fill_sites(short, most_sites, step_m)
+        if self._search is None:
+            self._search = make_evaluator(self.settings, self.grid, self.caster, cache=True)
+        pitches = np.linspace(model.pitch_min_deg, model.pitch_max_deg, FILL_PITCHES)
+        coarse_yaws = np.arange(0, 360, FILL_COARSE_YAW_DEG)
+        coarse = [
+            self._best_at(model, short, xy, pitches[[0, FILL_PITCHES // 2, -1]], coarse_yaws)
+            for xy in sites
+        ]
+        # Stable by gain, so the standing masts (first) win ties.
+        order = sorted(range(len(sites)), key=lambda k: -coarse[k][0])[:FILL_REFINE]
+        best: Addition | None = None
+        for k in order:
+            around = coarse[k][2] + np.arange(
+                -FILL_COARSE_YAW_DEG + FILL_YAW_DEG, FILL_COARSE_YAW_DEG, FILL_YAW_DEG
+            )
+            gain, pitch, yaw, height = self._best_at(model, short, sites[k], pitches, around % 360)
+            if gain > (best.gain_points if best else 0):
+                world = self.scene.to_world(sites[k][None])[0]
+                spec = SensorSpec(model, float(world[0]), float(world[1]), height, pitch, yaw)
+                best = Addition(spec, gain, k < self._standing_sites)
+        return best
+
+    def _best_at(
+        self, model: SensorModel, short: NDArray[np.bool_], xy: F64, pitches: F64, yaws: F64
+    ) -> tuple[int, float, float, float]:
+        """The orientation of a sensor at local ``xy`` that raises the most ``short``
+        points: (points, pitch, yaw, height above the ground); the first on ties."""
+        x, y = float(xy[0]), float(xy[1])
+        height = mount_height(self.scene, self.grid, _at(model, x, y), model, x, y)
+        best = (0, float(pitches[0]), float(yaws[0]), height)
+        assert self._search is not None
+        for pitch in pitches:
+            for yaw in yaws:
+                pose = place(self.grid, x, y, height, float(pitch), float(yaw))
+                gain = int(np.count_nonzero(short[self._search.evaluate(model, pose).covered]))
+                if gain > best[0]:
+                    best = (gain, float(pitch), float(yaw), height)
+        return best
+
+    def _fill_sites(self, short: NDArray[np.bool_], most: int, step_m: float) -> F64:
+        """(K, 2) local places to try: the standing masts, then lattice places in the
+        sensor areas where a mast may stand, nearest the largest uncovered patch."""
+        standing = self.scene.to_local(
+            np.array([[s.x, s.y] for s in self.specs], dtype=float).reshape(-1, 2)
+        )
+        if len(standing):
+            standing = standing[np.unique(group_positions(standing, self.settings.mast_join_m),
+                                          return_index=True)[1]]  # fmt: skip
+        self._standing_sites = len(standing)
+        patch = uncovered_parts(self.grid, short, self.scene)[0]
+        centre = self.scene.to_local(np.array([[patch["x"], patch["y"]]]))[0]
+        allowed = shapely.union_all([a.geometry for a in self.scene.sensor_areas])
+        x0, y0, x1, y1 = allowed.bounds
+        xs = np.arange(math.floor(x0 / step_m), math.ceil(x1 / step_m) + 1) * step_m
+        ys = np.arange(math.floor(y0 / step_m), math.ceil(y1 / step_m) + 1) * step_m
+        lattice = np.stack(np.meshgrid(xs, ys, indexing="ij"), axis=-1).reshape(-1, 2)
+        lattice = lattice[shapely.contains_xy(allowed, lattice[:, 0], lattice[:, 1])]
+        lattice = lattice[np.argsort(np.hypot(*(lattice - centre).T), kind="stable")]
+        # The nearest places first, off no-mast zones and standing objects (one query
+        # for a few times as many as wanted: most places are free).
+        near = lattice[: 4 * most]
+        free = near[[b is None for b in site_blockers(self.scene, near)]][:most]
+        return np.concatenate([standing, free.reshape(-1, 2)])
+
     def remove(self, i: int) -> None:
         """Take sensor ``i`` away; the sensors after it move down one index."""
         self.counts[self.covered[i]] -= 1
@@ -192,3 +298,9 @@ class LiveLayout:
             share=round(len(mine) / n, 6),
             lost_m2=round(lost * self.cell_m2, 4),
         )
+
+
+def _at(model: SensorModel, x: float, y: float) -> SensorSpec:
+    """A spec at local (x, y) with nothing but its model: its height is found as any
+    sensor's is (the sensor area's, else the model's mount height)."""
+    return SensorSpec(model, x, y, None, 0.0, 0.0)

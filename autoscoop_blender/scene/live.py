@@ -8,7 +8,8 @@ change after an Optimize or Evaluate, and dropped when the scene's own geometry
 changes (a mesh or curve outside the results moves or is edited), when the sensors
 are added or removed, or when another file is opened.
 
-The ``depsgraph_update_post`` handler only notes which scene changed; the work runs:
+The ``depsgraph_update_post`` handler only notes which scene's sensors changed (moved,
+turned, re-parented, added or deleted); the work runs:
 - in background mode (scripts, ``blender --background``), in the handler itself, so a
   script that moves a camera and calls ``view_layer.update()`` reads the new metrics;
 - with a user interface, in a timer 50 ms later, once for all the changes made by
@@ -32,7 +33,15 @@ from ..core.model.sensors import SensorSpec
 from . import pipeline
 from .extract import extract_scene
 from .factory import BVHFactory
-from .spawn import COVERAGE_ATTR, COVERAGE_COLOR_ATTR, COVERAGE_NAME, coverage_colors, find_results
+from .spawn import (
+    COVERAGE_ATTR,
+    COVERAGE_COLOR_ATTR,
+    COVERAGE_NAME,
+    SENSOR_PROP,
+    coverage_colors,
+    find_results,
+    sensor_camera,
+)
 
 # Seconds between the first change and the re-score, with a user interface.
 DELAY_S = 0.05
@@ -97,6 +106,13 @@ def on_depsgraph(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph) -> None
     moved = False
     for update in depsgraph.updates:
         obj = update.id
+        if isinstance(obj, (bpy.types.Collection, bpy.types.Scene)):
+            # Objects added or deleted: did the sensors change?
+            entry = _CACHE.get(scene.name)
+            if entry is not None:
+                sensors = _sensor_names(scene) if sensors is None else sensors
+                moved = moved or set(entry.cameras) != sensors
+            continue
         if not isinstance(obj, bpy.types.Object):
             continue
         obj = obj.original
@@ -106,8 +122,7 @@ def on_depsgraph(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph) -> None
             moved = moved or update.is_updated_transform or update.is_updated_geometry
         elif obj.type in {"MESH", "CURVE"} and not _is_results(obj, results):
             if update.is_updated_geometry or update.is_updated_transform:
-                forget(scene.name)  # a wall, the terrain or an area changed
-                moved = True
+                forget(scene.name)  # a wall, the terrain or an area: built anew next time
     if not moved:
         return
     _PENDING.add(scene.name)
@@ -179,6 +194,49 @@ def snap(scene: bpy.types.Scene, obj: bpy.types.Object) -> str:
     obj.matrix_world = m
     bpy.context.view_layer.update()
     return f"{obj.name} moved to ({spec.x:.2f}, {spec.y:.2f})"
+
+
+def fill_gap(scene: bpy.types.Scene) -> str:
+    """Add the one sensor camera (the panel's model) that raises the most target points
+    now short of their k (``LiveLayout.best_addition``: the standing masts first);
+    what was done, in words. InputError when nothing is uncovered or no place sees it."""
+    rescore(scene)
+    entry = _CACHE.get(scene.name)
+    if entry is None:
+        raise InputError("no sensors: run Optimize, or mark cameras as sensors")
+    layout = entry.live
+    model = pipeline.model_from(scene.autoscoop)
+    if model.range_m > layout.reach_m:
+        forget(scene.name)  # built for shorter sensors: once more, for this one
+        rescore(scene)
+        layout = _CACHE[scene.name].live
+    uncovered = layout.metrics()["uncovered_m2"]
+    add = layout.best_addition(model)
+    if add is None:
+        what = "nothing is uncovered" if uncovered == 0 else "no place a mast may stand sees"
+        raise InputError(f"no sensor to add: {what} the uncovered target")
+    spec = add.spec
+    local = scene_local(layout, spec)
+    ground = float(layout.grid.ground_z(local[None])[0])
+    z = ground + float(spec.height_m or 0.0) + float(layout.scene.origin[2])
+    cams = pipeline.sensor_cameras(scene)
+    n = 1 + max((int(o.get(SENSOR_PROP, 0)) for o in cams), default=0)
+    cam = sensor_camera(n, (spec.x, spec.y, z), spec.pitch_deg, spec.yaw_deg, model)
+    cam["height_m"] = float(spec.height_m or 0.0)
+    home = cams[0].users_collection[0] if cams else scene.collection
+    home.objects.link(cam)
+    bpy.context.view_layer.update()
+    where = "on a mast that stands" if add.on_standing_mast else "on a new mast"
+    m2 = add.gain_points * layout.cell_m2
+    return (
+        f"{cam.name} added {where} at ({spec.x:.1f}, {spec.y:.1f}): it raises {m2:,.0f} m^2 "
+        f"of the {uncovered:,.0f} m^2 short of their k (one sensor's reach)"
+    )
+
+
+def scene_local(layout: LiveLayout, spec: SensorSpec) -> np.ndarray:
+    """(2,) the local x, y of a world spec."""
+    return layout.scene.to_local(np.array([[spec.x, spec.y]], dtype=float))[0]
 
 
 def problems(scene_name: str) -> list[tuple[str, str]]:

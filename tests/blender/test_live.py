@@ -188,3 +188,28 @@ def test_a_sensor_moved_out_of_its_area_turns_red_and_export_waits(tmp_path):
     bpy.ops.ed.undo()
     bpy.context.view_layer.update()
     assert bpy.context.scene.objects[name].matrix_world.translation.x > 20.0
+
+
+def test_fill_largest_gap_adds_one_camera_and_undo_takes_it_away():
+    """A camera deleted from the plan leaves a gap; Fill Largest Gap adds one camera
+    that raises coverage again, scored as a full evaluation scores it, and the report
+    says how much; one undo removes it."""
+    props = _planned()
+    scene = bpy.context.scene
+    planned = json.loads(props.result_json)["metrics"]["coverage_fraction"]
+    bpy.data.objects.remove(pipeline.sensor_cameras(scene)[0])
+    bpy.context.view_layer.update()
+    holed = json.loads(props.result_json)["metrics"]["coverage_fraction"]
+    assert holed < planned
+    bpy.ops.ed.undo_push(message="deleted")
+    n = len(pipeline.sensor_cameras(scene))
+    assert bpy.ops.autoscoop.fill_gap() == {"FINISHED"}
+    bpy.ops.ed.undo_push(message="filled")
+    assert len(pipeline.sensor_cameras(scene)) == n + 1
+    filled = json.loads(props.result_json)["metrics"]["coverage_fraction"]
+    fraction, counts = _full(scene)
+    assert filled == pytest.approx(fraction, abs=1e-6) and filled > holed
+    np.testing.assert_array_equal(live.cached(scene.name).counts, counts)
+    bpy.ops.ed.undo()
+    bpy.context.view_layer.update()
+    assert len(pipeline.sensor_cameras(bpy.context.scene)) == n

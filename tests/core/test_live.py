@@ -138,3 +138,28 @@ def test_snapping_moves_a_mast_to_the_nearest_place_it_may_stand():
     far = down(10, 25.0 + DOWN.range_m + 5.0)
     live.move(1, far)
     assert live.snapped(1) is None
+
+
+def test_filling_a_gap_adds_the_sensor_that_raises_the_most_points_short():
+    """Squares of 400 points over (30, 0) and (40, 0) cover x 20..50. A camera added at
+    the model's mount height, 7 m, sees a square of 2 x 7 tan 30 deg = 8.08 m: 64
+    points, all of them new where nothing is seen, and added it covers them. With
+    k = 2 a camera on the standing mast at (30, 0) raises 64 points of its square to
+    2 as much as one anywhere raises 64 to 1: the standing mast is taken (no new
+    mast)."""
+    scene = flat_scene(target=(0.0, -20.0, 100.0, 20.0), sensor=(0.0, -20.0, 100.0, 20.0))
+    live = LiveLayout(scene, box_caster()(), [down(30, 0), down(40, 0)], CoverageSettings())
+    add = live.best_addition(DOWN, most_sites=30)
+    assert add.gain_points == 64 and not add.on_standing_mast
+    live.add(add.spec)
+    assert live.metrics()["covered_m2"] == 664.0
+    twice = LiveLayout(scene, box_caster()(), [down(30, 0)], CoverageSettings(coverage_k=2))
+    add = twice.best_addition(DOWN, most_sites=30)
+    assert add.gain_points == 64 and add.on_standing_mast
+    assert (add.spec.x, add.spec.y) == (30.0, 0.0)
+
+
+def test_nothing_to_fill_when_all_is_covered():
+    scene = flat_scene(target=(20.0, -10.0, 40.0, 10.0), sensor=(0.0, -20.0, 100.0, 20.0))
+    live = LiveLayout(scene, box_caster()(), [down(30, 0)], CoverageSettings())
+    assert live.metrics()["coverage_fraction"] == 1.0 and live.best_addition(DOWN) is None
