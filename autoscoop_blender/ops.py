@@ -307,6 +307,29 @@ class AUTOSCOOP_OT_fill_gap(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class AUTOSCOOP_OT_replan_rest(bpy.types.Operator):
+    """Keep the selected sensors as they stand and optimize the others again, with the
+    current optimizer and settings (a run with progress; Esc as in Optimize)"""
+
+    bl_idname = names.OP_REPLAN
+    bl_label = "Re-plan the Rest"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        return self._run(context, "EXEC_DEFAULT")
+
+    def invoke(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
+        return self._run(context, "INVOKE_DEFAULT")
+
+    def _run(self, context: bpy.types.Context, how: str) -> set[str]:
+        try:
+            kept = live.keep_selected(context.scene, list(context.selected_objects))
+        except AutoscoopError as e:
+            return _fail(self, e)
+        self.report({"INFO"}, f"Keeping {len(kept)} sensor(s): {', '.join(kept)}")
+        return bpy.ops.autoscoop.optimize(how)
+
+
 classes = (
     AUTOSCOOP_OT_optimize,
     AUTOSCOOP_OT_evaluate,
@@ -316,5 +339,6 @@ classes = (
     AUTOSCOOP_OT_clear_results,
     AUTOSCOOP_OT_snap_to_mast,
     AUTOSCOOP_OT_fill_gap,
+    AUTOSCOOP_OT_replan_rest,
 )
 register, unregister = bpy.utils.register_classes_factory(classes)

@@ -182,7 +182,9 @@ class AUTOSCOOP_PT_results(_Panel, bpy.types.Panel):
             layout.label(text="Edited by hand: the bound is the optimizer's plan's", icon="INFO")
         if props.live_error:
             layout.label(text=props.live_error, icon="ERROR")
-        layout.operator(names.OP_FILL)
+        row = layout.row(align=True)
+        row.operator(names.OP_FILL)
+        row.operator(names.OP_REPLAN)
         misplaced = live.problems(context.scene.name)
         for name, why in misplaced:
             layout.label(text=f"{name}: stands {why}", icon="ERROR")

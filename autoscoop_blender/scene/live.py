@@ -27,6 +27,7 @@ from typing import Any
 import bpy
 import numpy as np
 
+from .. import names as names_mod
 from ..core.errors import AutoscoopError, InputError
 from ..core.live import LiveLayout
 from ..core.model.sensors import SensorSpec
@@ -232,6 +233,29 @@ def fill_gap(scene: bpy.types.Scene) -> str:
         f"{cam.name} added {where} at ({spec.x:.1f}, {spec.y:.1f}): it raises {m2:,.0f} m^2 "
         f"of the {uncovered:,.0f} m^2 short of their k (one sensor's reach)"
     )
+
+
+def keep_selected(scene: bpy.types.Scene, selected: list[bpy.types.Object]) -> list[str]:
+    """Before "Re-plan the rest": the selected sensor cameras of the plan become the
+    user's own, marked as sensors that stand (the next Optimize keeps them as they
+    stand and plans around them; ``OptimizeJob``); their names. InputError when none of
+    the selected is a sensor camera."""
+    sensors = {o.name for o in pipeline.sensor_cameras(scene)}
+    keep = [o for o in selected if o.name in sensors]
+    if not keep:
+        raise InputError("select the sensor cameras to keep, then Re-plan the Rest")
+    results = find_results(scene)
+    names = []
+    for obj in keep:
+        if results is not None and obj.name in results.all_objects:
+            own = obj.copy()  # the results are replaced by the run: a copy of one's own
+            own.data = obj.data.copy()
+            own.name = f"Kept {obj.name}"
+            scene.collection.objects.link(own)
+            obj = own
+        obj[names_mod.ROLE_PROP] = names_mod.ROLE_SENSOR
+        names.append(obj.name)
+    return names
 
 
 def scene_local(layout: LiveLayout, spec: SensorSpec) -> np.ndarray:

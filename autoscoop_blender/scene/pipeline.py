@@ -262,10 +262,18 @@ def _remember(scene: bpy.types.Scene, result: Result, doc: dict[str, Any]) -> No
 
 def sensor_cameras(scene: bpy.types.Scene) -> list[bpy.types.Object]:
     """Cameras to evaluate: those of the results collection and those the user marked
-    as sensors (``autoscoop_role = "sensor"``), in a stable order."""
+    as sensors (``autoscoop_role = "sensor"``), each sensor once, in a stable order."""
     results = find_results(scene)
     spawned = [o for o in results.all_objects if o.type == "CAMERA"] if results else []
     marked = [o for o in marked_cameras(scene) if o not in spawned]
+    # A plan shows the sensors that stood already as cameras of its own: where the
+    # user's marked camera stands too, that one counts, once.
+    stand = [np.array(o.matrix_world) for o in marked]
+    spawned = [
+        o for o in spawned
+        if not (o.get("existing") and any(np.allclose(np.array(o.matrix_world), m, atol=1e-3)
+                                          for m in stand))
+    ]  # fmt: skip
     return sorted(spawned, key=lambda o: o.name) + marked
 
 

@@ -213,3 +213,37 @@ def test_fill_largest_gap_adds_one_camera_and_undo_takes_it_away():
     bpy.ops.ed.undo()
     bpy.context.view_layer.update()
     assert len(pipeline.sensor_cameras(bpy.context.scene)) == n
+
+
+def test_replan_the_rest_keeps_the_selected_sensor_and_plans_around_it():
+    """One camera selected: it becomes the user's own, kept as it stands; the new
+    plan counts it as existing at its pose and reaches the goal; one undo step takes
+    the re-plan back."""
+    props = _planned()
+    scene = bpy.context.scene
+    bpy.ops.ed.undo_push(message="planned")
+    planned = json.loads(props.result_json)
+    keep = pipeline.sensor_cameras(scene)[1]
+    name = keep.name
+    x, y, _ = keep.matrix_world.translation
+    bpy.ops.object.select_all(action="DESELECT")
+    keep.select_set(True)
+    assert bpy.ops.autoscoop.replan_rest() == {"FINISHED"}
+    bpy.ops.ed.undo_push(message="re-planned")
+    doc = json.loads(scene.autoscoop.result_json)
+    kept = [s for s in doc["sensors"] if s["existing"]]
+    assert len(kept) == 1 and doc["metrics"]["existing_sensors"] == 1
+    assert (kept[0]["x"], kept[0]["y"]) == pytest.approx((x, y), abs=1e-3)
+    assert doc["metrics"]["coverage_fraction"] >= 0.6
+    own = scene.objects[f"Kept {name}"]
+    assert own.get(names.ROLE_PROP) == names.ROLE_SENSOR
+    # The kept sensor is counted once: the plan's camera of it and the user's own
+    # stand in one place.
+    cams = pipeline.sensor_cameras(scene)
+    assert own in cams and len(cams) == doc["metrics"]["sensors"]
+    bpy.ops.ed.undo()
+    assert json.loads(bpy.context.scene.autoscoop.result_json) == planned
+    assert f"Kept {name}" not in bpy.context.scene.objects
+    with pytest.raises(RuntimeError, match="select the sensor cameras to keep"):
+        bpy.ops.object.select_all(action="DESELECT")
+        bpy.ops.autoscoop.replan_rest()
