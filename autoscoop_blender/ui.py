@@ -179,7 +179,14 @@ class AUTOSCOOP_PT_results(_Panel, bpy.types.Panel):
         if doc.get("stop_reason"):
             layout.label(text=doc["stop_reason"], icon="INFO")
         if doc.get("edited"):
-            layout.label(text="Edited by hand: the bound is the optimizer's plan's", icon="INFO")
+            was = doc.get("as_optimized", {})
+            text = "Edited by hand"
+            if was.get("lower_bound") is not None:
+                text += (
+                    f"; as optimized: {was.get('objective', 0):g} >= bound {was['lower_bound']:g}"
+                    " (the bound is that plan's)"
+                )
+            layout.label(text=text, icon="INFO")
         if props.live_error:
             layout.label(text=props.live_error, icon="ERROR")
         row = layout.row(align=True)

@@ -316,7 +316,8 @@ def _build(scene: bpy.types.Scene, specs: list[SensorSpec]) -> LiveLayout:
 
 def _write_metrics(scene: bpy.types.Scene, metrics: dict[str, Any]) -> None:
     """The layout's metrics into the scene's result, marked as edited by hand when they
-    differ from what the optimizer or Evaluate found: a bound stays the optimizer's."""
+    differ from what the optimizer or Evaluate found. The plan as optimized (its cost,
+    bound and gap) is kept under ``as_optimized``; the edited plan has no bound."""
     props = scene.autoscoop
     doc = json.loads(props.result_json)
     old = doc.setdefault("metrics", {})
@@ -325,9 +326,12 @@ def _write_metrics(scene: bpy.types.Scene, metrics: dict[str, Any]) -> None:
         new["cost"] = metrics["cost"]
     if all(old.get(k) == v for k, v in new.items()):
         return  # as planned or evaluated (the spawn's own update comes here)
+    if "as_optimized" not in doc:  # the first edit: what the optimizer's plan was
+        keep = ("objective", "cost", "lower_bound", "gap", "sensors", "masts", "coverage_fraction")
+        doc["as_optimized"] = {k: old[k] for k in keep if old.get(k) is not None}
     old.update(new, uncovered_m2=metrics["uncovered_m2"])
-    if old.get("lower_bound") is not None:
-        doc["bound_is_the_optimizers"] = True  # of the plan as optimized, not as edited
+    # A bound is the optimizer's, about its plan: none is proven for the edited one.
+    old.update(lower_bound=None, gap=None)
     doc["edited"] = True
     props.result_json = json.dumps(doc)
 

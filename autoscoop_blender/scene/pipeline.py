@@ -312,9 +312,9 @@ def camera_spec(obj: bpy.types.Object, fallback: SensorModel) -> SensorSpec:
     return SensorSpec(model, float(m[0, 3]), float(m[1, 3]), None, pitch, yaw, z=float(m[2, 3]))
 
 
-def evaluate_cameras(context: bpy.types.Context) -> dict[str, Any]:
-    """Coverage of the sensor cameras where they stand now; results replaced."""
-    scene = context.scene
+def evaluated_now(scene: bpy.types.Scene) -> Result:
+    """The coverage of the scene's sensor cameras where they stand now (what
+    ``headless coverage`` computes for those poses)."""
     props = scene.autoscoop
     cams = sensor_cameras(scene)
     if not cams:
@@ -325,7 +325,13 @@ def evaluate_cameras(context: bpy.types.Context) -> dict[str, Any]:
     specs = [camera_spec(o, fallback) for o in cams]
     scene_model = extract_scene(scene).cropped(max(s.model.range_m for s in specs))
     caster = BVHFactory.of(scene_model)()
-    result = evaluate_layout(scene_model, caster, specs, coverage_settings_from(props))
+    return evaluate_layout(scene_model, caster, specs, coverage_settings_from(props))
+
+
+def evaluate_cameras(context: bpy.types.Context) -> dict[str, Any]:
+    """Coverage of the sensor cameras where they stand now; results replaced."""
+    scene = context.scene
+    result = evaluated_now(scene)
     doc = coverage_dict(result)
     spawn_results(scene, result)
     _remember(scene, result, doc)
@@ -362,15 +368,20 @@ def last_layout(scene: bpy.types.Scene) -> tuple[Result, dict[str, Any]] | None:
 
 
 def export(scene: bpy.types.Scene, kind: str, folder: str) -> tuple[list[Path], str | None]:
-    """Write one report (JSON, CSV, GEOJSON or PNG) of the last layout: its paths, and
-    a note when the scene has no CRS. GEOJSON writes sensors_local.geojson, and with
+    """Write one report (JSON, CSV, GEOJSON or PNG) of the last layout (a plan edited
+    by hand since: as it stands, counted again, with the optimizer's figures under
+    ``as_optimized``): its paths, and a note when the scene has no CRS. GEOJSON writes sensors_local.geojson, and with
     the scene's CRS also sensors.geojson (WGS84) and plan.gpkg (``reports.gis_files``)."""
     layout = last_layout(scene)
+    current = json.loads(scene.autoscoop.result_json or "{}")
+    if layout is None and current.get("edited"):
+        # Edited by hand: the plan as it stands, counted again; the optimizer's
+        # figures kept apart, as its plan's.
+        result = evaluated_now(scene)
+        doc = {**coverage_dict(result), "edited": True}
+        doc["as_optimized"] = current.get("as_optimized", {})
+        layout = result, doc
     if layout is None:
-        if scene.autoscoop.result_json and json.loads(scene.autoscoop.result_json).get("edited"):
-            raise InputError(
-                "the plan was edited by hand: press Evaluate to export it as it stands"
-            )
         raise InputError("no result in this session: run Optimize or Evaluate first")
     result, doc = layout
     out = Path(bpy.path.abspath(folder or "//"))

@@ -81,6 +81,9 @@ def test_a_moved_camera_is_scored_again_as_a_full_evaluation_scores_it():
     assert after["metrics"]["coverage_fraction"] == pytest.approx(fraction, abs=1e-6)
     assert after["metrics"]["coverage_fraction"] < before["coverage_fraction"]
     assert after["edited"] is True and props.live_error == ""
+    # The edited plan has no bound of its own; the optimizer's plan's figures are kept.
+    assert after["metrics"]["lower_bound"] is None and after["metrics"]["gap"] is None
+    assert after["as_optimized"]["coverage_fraction"] == before["coverage_fraction"]
     np.testing.assert_array_equal(_mesh_counts(scene), counts)
     np.testing.assert_array_equal(live.cached(scene.name).counts, counts)
     # What the moved camera alone covers, and what the plan would lose without it: the
@@ -247,3 +250,23 @@ def test_replan_the_rest_keeps_the_selected_sensor_and_plans_around_it():
     with pytest.raises(RuntimeError, match="select the sensor cameras to keep"):
         bpy.ops.object.select_all(action="DESELECT")
         bpy.ops.autoscoop.replan_rest()
+
+
+def test_export_after_a_hand_edit_writes_the_plan_as_it_stands(tmp_path):
+    """A moved camera, then Export: result.json holds the coverage of the cameras as
+    they stand (a full evaluation's), marked edited, with the optimizer's plan's
+    figures apart; sensors.csv has the moved camera where it stands now."""
+    props = _planned()
+    props.export_dir = str(tmp_path)
+    scene = bpy.context.scene
+    cam = pipeline.sensor_cameras(scene)[0]
+    _move(cam, dx=-2.0, turn_deg=45.0)
+    fraction, _ = _full(scene)
+    for kind in ("JSON", "CSV"):
+        assert bpy.ops.autoscoop.export(kind=kind) == {"FINISHED"}
+    doc = json.loads((tmp_path / "result.json").read_text())
+    assert doc["edited"] is True and doc["coverage_fraction"] == pytest.approx(fraction, abs=1e-6)
+    assert doc["as_optimized"]["sensors"] == len(doc["sensors"])
+    x = cam.matrix_world.translation.x
+    rows = (tmp_path / "sensors.csv").read_text().splitlines()[1:]
+    assert any(abs(float(r.split(",")[1]) - x) < 1e-3 for r in rows)
