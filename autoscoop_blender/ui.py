@@ -166,6 +166,8 @@ class AUTOSCOOP_PT_results(_Panel, bpy.types.Panel):
             ("Coverage", "coverage_fraction", "{:.1%}"),
             ("Sensors", "sensors", "{}"),
             ("Masts", "masts", "{}"),
+            ("Uncovered", "uncovered_m2", "{:,.0f} m²"),
+            ("Cost", "cost", "{:g}"),
             ("Cluster ratio", "cluster_ratio", "{:.2f}"),
             ("Overlap factor", "overlap_factor", "{:.2f}"),
             ("Objective", "objective", "{:g}"),
