@@ -30,7 +30,7 @@ import numpy as np
 from .. import names as names_mod
 from ..core.errors import AutoscoopError, InputError
 from ..core.live import LiveLayout
-from ..core.model.sensors import SensorSpec
+from ..core.model.sensors import SensorModel, SensorSpec
 from . import pipeline
 from .extract import extract_scene
 from .factory import BVHFactory
@@ -57,6 +57,7 @@ class _Entry:
 
     live: LiveLayout
     cameras: list[str]
+    fallback: SensorModel  # the panel's model when the layout was scored
 
 
 _CACHE: dict[str, _Entry] = {}
@@ -96,6 +97,15 @@ def _is_results(obj: bpy.types.Object, results: bpy.types.Collection | None) -> 
     return results is not None and obj.name in results.all_objects
 
 
+def _model_changed(scene: bpy.types.Scene, entry: _Entry) -> bool:
+    """Whether the panel's sensor model (that of every camera without its own) is not
+    the one the layout was scored with."""
+    try:
+        return pipeline.model_from(scene.autoscoop) != entry.fallback
+    except AutoscoopError:
+        return False  # a model being typed in: scored once it reads
+
+
 @bpy.app.handlers.persistent
 def on_depsgraph(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph) -> None:
     """depsgraph_update_post: note a moved sensor camera (re-score), or drop the cache
@@ -112,15 +122,17 @@ def on_depsgraph(scene: bpy.types.Scene, depsgraph: bpy.types.Depsgraph) -> None
             entry = _CACHE.get(scene.name)
             if entry is not None:
                 sensors = _sensor_names(scene) if sensors is None else sensors
-                moved = moved or set(entry.cameras) != sensors
+                moved = moved or set(entry.cameras) != sensors or _model_changed(scene, entry)
             continue
         if not isinstance(obj, bpy.types.Object):
             continue
         obj = obj.original
         if sensors is None:
             sensors = _sensor_names(scene)
-        if obj.name in sensors or obj.type == "EMPTY":  # a sensor, or a mast it is on
-            moved = moved or update.is_updated_transform or update.is_updated_geometry
+        if obj.name in sensors or obj.type == "EMPTY":
+            # A sensor (moved, turned, its model edited), or a mast it may be on: the
+            # re-score compares every sensor with what it was.
+            moved = True
         elif obj.type in {"MESH", "CURVE"} and not _is_results(obj, results):
             if update.is_updated_geometry or update.is_updated_transform:
                 forget(scene.name)  # a wall, the terrain or an area: built anew next time
@@ -157,13 +169,15 @@ def rescore(scene: bpy.types.Scene) -> dict[str, Any] | None:
         forget(scene.name)
         return None
     props = scene.autoscoop
-    specs = [pipeline.camera_spec(o, pipeline.model_from(props)) for o in cams]
+    fallback = pipeline.model_from(props)
+    specs = [pipeline.camera_spec(o, fallback) for o in cams]
     names = [o.name for o in cams]
     entry = _CACHE.get(scene.name)
     if entry is None or entry.cameras != names or _out_of_reach(entry.live, specs):
-        entry = _Entry(_build(scene, specs), names)
+        entry = _Entry(_build(scene, specs), names, fallback)
         _CACHE[scene.name] = entry
     else:
+        entry.fallback = fallback
         for i, spec in enumerate(specs):
             if spec != entry.live.specs[i]:
                 entry.live.move(i, spec)

@@ -19,7 +19,7 @@ from autoscoop_blender.core.evaluate import evaluate_layout
 from autoscoop_blender.scene import live, pipeline
 from autoscoop_blender.scene.extract import extract_scene
 from autoscoop_blender.scene.factory import BVHFactory
-from autoscoop_blender.scene.spawn import COVERAGE_ATTR, COVERAGE_NAME
+from autoscoop_blender.scene.spawn import COVERAGE_ATTR, COVERAGE_NAME, MODEL_PROP
 from tests.blender.conftest import SAMPLES
 
 
@@ -270,3 +270,21 @@ def test_export_after_a_hand_edit_writes_the_plan_as_it_stands(tmp_path):
     x = cam.matrix_world.translation.x
     rows = (tmp_path / "sensors.csv").read_text().splitlines()[1:]
     assert any(abs(float(r.split(",")[1]) - x) < 1e-3 for r in rows)
+
+
+def test_a_cameras_model_changed_is_scored_again():
+    """A spawned camera's own model given a 15 m range: re-scored as a full evaluation
+    scores it, with less covered."""
+    props = _planned()
+    scene = bpy.context.scene
+    cam = pipeline.sensor_cameras(scene)[0]
+    _move(cam, dx=0.2)
+    before = json.loads(props.result_json)["metrics"]["coverage_fraction"]
+    model = dict(cam[MODEL_PROP])
+    model["range_m"] = 15.0
+    cam[MODEL_PROP] = model
+    cam.update_tag()
+    bpy.context.view_layer.update()
+    after = json.loads(props.result_json)["metrics"]["coverage_fraction"]
+    fraction, _ = _full(scene)
+    assert after == pytest.approx(fraction, abs=1e-6) and after < before
