@@ -62,6 +62,11 @@ class _Entry:
 
 _CACHE: dict[str, _Entry] = {}
 _PENDING: set[str] = set()
+# Per scene: which result (its keys but those this module writes) and how its sensor
+# cameras stood when it was made. No layout is built while they stand so: a plan just
+# spawned costs nothing more to show, however large the ground.
+_BASELINE: dict[str, tuple[int, dict[str, SensorSpec]]] = {}
+_LIVE_KEYS = ("metrics", "edited", "as_optimized")
 
 
 def cached(scene_name: str) -> LiveLayout | None:
@@ -85,6 +90,7 @@ def forget(scene_name: str | None = None) -> None:
     if scene_name is None:
         _CACHE.clear()
         _PENDING.clear()
+        _BASELINE.clear()
     else:
         _CACHE.pop(scene_name, None)
 
@@ -155,15 +161,29 @@ def run_pending() -> None:
             forget(name)
             continue
         try:
-            rescore(scene)
+            rescore(scene, force=False)
         except AutoscoopError as e:  # a camera's model that does not read: say so
             scene.autoscoop.live_error = str(e)
     return None
 
 
-def rescore(scene: bpy.types.Scene) -> dict[str, Any] | None:
+def _as_left(scene: bpy.types.Scene, names: list[str], specs: list[SensorSpec]) -> bool:
+    """Whether the sensor cameras stand as the scene's result left them (the first
+    look at a result records how they stand)."""
+    doc = json.loads(scene.autoscoop.result_json or "{}")
+    key = hash(json.dumps({k: v for k, v in doc.items() if k not in _LIVE_KEYS}, sort_keys=True))
+    now = dict(zip(names, specs))
+    base = _BASELINE.get(scene.name)
+    if base is None or base[0] != key:
+        _BASELINE[scene.name] = (key, now)
+        return True
+    return base[1] == now
+
+
+def rescore(scene: bpy.types.Scene, force: bool = True) -> dict[str, Any] | None:
     """Bring the scene's metrics and coverage colouring up to date with its sensor
-    cameras as they stand; the new metrics (None: no sensors)."""
+    cameras as they stand; the new metrics (None: no sensors, or, unless ``force``,
+    no layout built and the cameras as the result left them)."""
     cams = pipeline.sensor_cameras(scene)
     if not cams:
         forget(scene.name)
@@ -173,6 +193,8 @@ def rescore(scene: bpy.types.Scene) -> dict[str, Any] | None:
     specs = [pipeline.camera_spec(o, fallback) for o in cams]
     names = [o.name for o in cams]
     entry = _CACHE.get(scene.name)
+    if entry is None and not force and _as_left(scene, names, specs):
+        return None
     if entry is None or entry.cameras != names or _out_of_reach(entry.live, specs):
         entry = _Entry(_build(scene, specs), names, fallback)
         _CACHE[scene.name] = entry

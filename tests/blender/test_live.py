@@ -74,6 +74,8 @@ def test_a_moved_camera_is_scored_again_as_a_full_evaluation_scores_it():
     props = _planned()
     scene = bpy.context.scene
     before = json.loads(props.result_json)["metrics"]
+    bpy.context.view_layer.update()
+    assert live.cached(scene.name) is None  # as planned: nothing built to show it
     cam = pipeline.sensor_cameras(scene)[0]
     _move(cam, dx=-6.0, turn_deg=170.0)  # turned away from most of the target
     after = json.loads(props.result_json)
