@@ -46,8 +46,9 @@ def open_blend(path: str | None) -> str:
         raise InputError(f"{path}: file not found")
     try:
         # (held: Blender's load handlers run Python, ``interrupts``; quiet: its "Read
-        # blend: ..." line is not ours to print)
-        with interrupts.held(), quiet_fds():
+        # blend: ..." line on stdout is not ours to print. Not stderr: an interrupt's
+        # last line goes there, also while the file loads.)
+        with interrupts.held(), quiet_fds((1,)):
             bpy.ops.wm.open_mainfile(filepath=str(p.resolve()))
     except RuntimeError:
         raise InputError(f"{path}: not a readable .blend file") from None
@@ -236,25 +237,24 @@ def _umask() -> int:
 
 
 @contextmanager
-def quiet_fds() -> Iterator[list[str]]:
-    """Send file descriptors 1 and 2 to a temporary file (Blender's C code writes to
-    them directly, past ``sys.stdout``); yields a list that holds what was written once
-    the block has ended."""
+def quiet_fds(fds: tuple[int, ...] = (1, 2)) -> Iterator[list[str]]:
+    """Send file descriptors ``fds`` (1 and 2: stdout and stderr) to a temporary file
+    (Blender's C code writes to them directly, past ``sys.stdout``); yields a list that
+    holds what was written once the block has ended."""
     chatter: list[str] = []
     sys.stdout.flush()
     sys.stderr.flush()
-    saved = [os.dup(1), os.dup(2)]
+    saved = [os.dup(fd) for fd in fds]
     with tempfile.TemporaryFile() as sink:
-        os.dup2(sink.fileno(), 1)
-        os.dup2(sink.fileno(), 2)
+        for fd in fds:
+            os.dup2(sink.fileno(), fd)
         try:
             yield chatter
         finally:
             sys.stdout.flush()
             sys.stderr.flush()
-            os.dup2(saved[0], 1)
-            os.dup2(saved[1], 2)
-            for fd in saved:
-                os.close(fd)
+            for fd, kept in zip(fds, saved):
+                os.dup2(kept, fd)
+                os.close(kept)
             sink.seek(0)
             chatter.append(sink.read().decode("utf-8", "replace"))
