@@ -193,7 +193,7 @@ class LiveLayout:
         if self._search is None:
             self._search = make_evaluator(self.settings, self.grid, self.caster, cache=True)
         pitches = np.linspace(model.pitch_min_deg, model.pitch_max_deg, FILL_PITCHES)
-        coarse_yaws = np.arange(0, 360, FILL_COARSE_YAW_DEG)
+        coarse_yaws = np.arange(0.0, 360.0, FILL_COARSE_YAW_DEG)
         coarse = [
             self._best_at(model, short, xy, pitches[[0, FILL_PITCHES // 2, -1]], coarse_yaws)
             for xy in sites
