@@ -8,6 +8,10 @@ updates the counts, so a move costs one sensor's evaluation however many sensors
 stand. The counts are exactly ``evaluate_layout``'s (``headless coverage``): the same
 grid, the same evaluator and the same pose of each sensor (``evaluate.sensor_pose``).
 
+Beside the counts: why a sensor's mast may not stand where it does (``problems``), the
+nearest place it may (``snapped``), and the one sensor to add that raises the most
+points short of their k (``best_addition``): the panel's editing tools.
+
 Positions are world metres (``SensorSpec``); areas m^2.
 """
 
