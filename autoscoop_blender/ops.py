@@ -327,7 +327,9 @@ class AUTOSCOOP_OT_replan_rest(bpy.types.Operator):
         except AutoscoopError as e:
             return _fail(self, e)
         self.report({"INFO"}, f"Keeping {len(kept)} sensor(s): {', '.join(kept)}")
-        return bpy.ops.autoscoop.optimize(how)
+        ran = bpy.ops.autoscoop.optimize(how)
+        # A run still going on (modal) is Optimize's own: this one has done its part.
+        return {"FINISHED"} if ran & {"FINISHED", "RUNNING_MODAL"} else {"CANCELLED"}
 
 
 classes = (
