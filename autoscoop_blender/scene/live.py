@@ -198,14 +198,17 @@ def rescore(scene: bpy.types.Scene, force: bool = True) -> dict[str, Any] | None
     if entry is None or entry.cameras != names or _out_of_reach(entry.live, specs):
         entry = _Entry(_build(scene, specs), names, fallback)
         _CACHE[scene.name] = entry
+        changed = True
     else:
         entry.fallback = fallback
-        for i, spec in enumerate(specs):
-            if spec != entry.live.specs[i]:
-                entry.live.move(i, spec)
+        moved = [i for i, spec in enumerate(specs) if spec != entry.live.specs[i]]
+        for i in moved:
+            entry.live.move(i, specs[i])
+        changed = bool(moved)
     metrics = entry.live.metrics()
     _write_metrics(scene, metrics)
-    _color(scene, entry.live.counts)
+    if changed:  # (a selection or an update of nothing that counts leaves the colours)
+        _color(scene, entry.live.counts)
     _mark_misplaced(cams, entry.live.problems)
     props.live_error = ""
     return metrics
