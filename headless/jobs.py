@@ -274,7 +274,13 @@ def estimate_text(est: Estimate) -> str:
 
 def time_text(build_s: float, limit_s: float) -> str:
     """How long an lp run takes: its candidates (``Estimate.build_s``), then its search
-    until its plan is done, within its time limit."""
+    until its plan is done, within its time limit. A limit shorter than the candidates
+    take does not cut them short (no plan exists without them): the line says so."""
+    if limit_s < build_s:
+        return (
+            f"time: candidates ~{duration(build_s)} of one core, longer than the time limit "
+            f"({duration(limit_s)}): the run ends once they are built, with the best plan by then"
+        )
     return (
         f"time: candidates ~{duration(build_s)} of one core, the whole run at most "
         f"{duration(limit_s)} (its time limit)"

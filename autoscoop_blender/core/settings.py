@@ -451,7 +451,8 @@ class OptimizeSettings(CoverageSettings):
         "lp: end the run after at most this many seconds with the best plan by then and "
         "its proven gap (default: 240 s for a ground planned whole; 210 s for each part of "
         "a ground planned in parts of up to 20,000 target points, at most 28 minutes in "
-        "all unless that leaves a part under 120 s)",
+        "all unless that leaves a part under 120 s); a limit shorter than building the "
+        "candidates takes ends once they are built: no plan exists without them",
         lo=0.0,
         lo_open=True,
         flag="--time-limit",

@@ -177,6 +177,11 @@ def test_the_estimate_line_says_what_the_estimate_holds():
     assert time_text(est.build_s, 720.0) == (
         "time: candidates ~15 s of one core, the whole run at most 12 min 00 s (its time limit)"
     )
+    # A limit shorter than the candidates take does not promise what it cannot keep.
+    assert time_text(est.build_s, 1.0) == (
+        "time: candidates ~15 s of one core, longer than the time limit (1 s): the run ends "
+        "once they are built, with the best plan by then"
+    )
     es = replace(est, optimizer="es", orientations=0, nonzeros=0, parts=1, peak_stage="workers")
     assert estimate_text(es) == (
         "peak ~1.7 GiB (at the workers stage) for es, 16,555 target points, 665 mast "
