@@ -479,6 +479,27 @@ def test_prove_bound_reports_the_greedy_plan_and_the_lp_as_it_rises():
     assert {r.best for r in reports} == {3 + 3e-6}
 
 
+def test_the_plan_on_the_fewest_masts_is_the_best_so_far_while_the_lp_works(monkeypatch):
+    """GREEDY_TRAP with a plan: the plan on the fewest masts (1 and 2: 2 sensors, where
+    greedy has 3) is reported as soon as it is found, while a slow LP (here 40 waits
+    before its rounds) has proven nothing yet."""
+    problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="sensors")
+    real = lp_module.cover_lp
+
+    def slow_lp(*args, **kwargs):
+        for _ in range(40):
+            yield None
+        return (yield from real(*args, **kwargs))
+
+    monkeypatch.setattr(lp_module, "cover_lp", slow_lp)
+    (bound, _, on_sites, _), reports = _bound_run(problem, plan=True)
+    assert sorted(on_sites) == [1, 2] and bound.sensors == 2
+    first_plan = next(i for i, r in enumerate(reports) if r.best == 2.0)
+    first_bound = next(i for i, r in enumerate(reports) if r.bound is not None and r.bound > 1)
+    assert reports[0].best == 3.0 and first_plan < first_bound
+    assert all(r.best == 2.0 for r in reports[first_plan:])  # it never goes back
+
+
 def test_prove_bound_with_models_of_different_costs():
     """Candidate 2 of model 1 costs 3: the LP prices it (1 + 3 = 4 for the plan of 1
     and 2), and the count follows through the dearest model: 4 / 3 -> 2."""

@@ -111,6 +111,14 @@ class PartInputs:
     sites: Generator[None, None, SiteSolution]
 
 
+@dataclass(frozen=True)
+class Incumbent:
+    """A plan found while the bounds are still being proven (``masts_then_plan``):
+    its objective, reported at once as the best plan so far."""
+
+    value: float
+
+
 def instance(
     cands: CandidateSet,
     problem: Problem,
@@ -261,9 +269,10 @@ def masts_then_plan(
     chosen for what it sees), the cheapest by greedy per cost (a new mast costs
     extra), improved, then with masts closed while that is cheaper; the cheaper of
     the two, and then the mast-aware MILP over its masts (``milp_candidates``). None
-    when there is no plan. ``milp``: solve the fewest masts' MILP (else its LP
-    only); ``known``: where the sites come from instead (a part's masts LP,
-    ``PartInputs``)."""
+    when there is no plan. Each plan is yielded as an ``Incumbent`` when found, so the
+    progress shows it while the LP still works. ``milp``: solve the fewest masts'
+    MILP (else its LP only); ``known``: where the sites come from instead (a part's
+    masts LP, ``PartInputs``)."""
     if known is None:
         known = site_cover(
             inst, cands.position, len(cands.positions), deadline, stop, milp, _standing(problem)
@@ -293,12 +302,15 @@ def masts_then_plan(
     if not starts:
         return sites, None
     start = min(starts, key=lambda c: plan_value(problem, cands, c.chosen))
+    yield Incumbent(plan_value(problem, cands, start.chosen))
     used = np.unique(site_of[start.chosen])
     cols = milp_candidates(inst, site_of, used, start.chosen)
     mc, sc = mast_aware_costs(problem, cands, len(cols))
     chosen = yield from sensors_on_sites(
         inst, site_of, used, start.chosen, mc, sc, deadline, stop, cols=cols
     )
+    if chosen:
+        yield Incumbent(plan_value(problem, cands, chosen))
     return sites, chosen
 
 
@@ -382,6 +394,8 @@ def prove_bound(
             break
         if isinstance(step, LPProgress) and per_sensor is not None:
             so_far = per_sensor * step.bound
+        if isinstance(step, Incumbent):  # a plan on the fewest masts, known at once
+            best = min(best, step.value)
         yield solution.progress("search", problem.rho, bound=so_far, best=best, stage="bounds")
     return _plan_bound(lp, sites, cands, problem), lp, on_sites, greedies
 
