@@ -25,6 +25,7 @@ from scipy.optimize import linprog
 from autoscoop_blender.core.optimize import bound
 from autoscoop_blender.core.optimize.bound import (
     LPProgress,
+    MergedPoints,
     combined_bound,
     cover_lp,
     parts_of,
@@ -209,6 +210,81 @@ def test_a_candidate_seen_in_two_parts():
     assert x[0] == pytest.approx(1.0) and x[2] == pytest.approx(1.0) and x.get(1, 0.0) < 1e-9
     assert sol.priced[0] == pytest.approx(1.5, abs=1e-6)
     assert sol.reduced[0] == pytest.approx(0.5, abs=1e-6)
+
+
+def _groups(merged):
+    """{the columns that cover a group, its need: its weight} of a ``MergedPoints``."""
+    by_group = merged.matrix.tocsc()
+    return {
+        (tuple(sorted(by_group[:, g].indices)), int(merged.need[g])): merged.weight[g]
+        for g in range(by_group.shape[1])
+    }
+
+
+# Points 0-5 seen by c0 = {0, 1, 2}, c1 = {1, 2, 4}, c2 = {3}; nothing sees point 5.
+SEEN = instance([[0, 1, 2], [1, 2, 4], [3]], 6, 5).matrix
+
+
+def test_points_seen_by_the_same_candidates_merge():
+    """Points 1 and 2 are both seen by c0 and c1: one group of 2; the others alone;
+    point 5 in none. Needed twice, point 2 stands apart from point 1."""
+    ones = np.ones(6, np.int32)
+    want = {((0,), 1): 1, ((0, 1), 1): 2, ((2,), 1): 1, ((1,), 1): 1}
+    assert _groups(MergedPoints.of(SEEN, ones)) == want
+    need = np.array([1, 1, 2, 1, 1, 1], np.int32)
+    del want[((0, 1), 1)]
+    want |= {((0, 1), 1): 1, ((0, 1), 2): 1}
+    assert _groups(MergedPoints.of(SEEN, need)) == want
+
+
+def test_points_whose_keys_collide_are_told_apart(monkeypatch):
+    """With every salt 1 the key is a point's count and values alone: points 0, 3 and
+    4 (one candidate each) share a key, and the entry by entry check parts them."""
+
+    class Ones:
+        def integers(self, low, high, size, dtype):
+            return np.ones(size, dtype)
+
+    monkeypatch.setattr(bound.np.random, "default_rng", lambda seed: Ones())
+    want = {((0,), 1): 1, ((0, 1), 1): 2, ((2,), 1): 1, ((1,), 1): 1}
+    assert _groups(MergedPoints.of(SEEN, np.ones(6, np.int32))) == want
+
+
+def _cheapest_plan(inst, site_of, cap, mast_cost):
+    """The least mast_cost x sites + sensors of any plan within the cap, by enumeration."""
+    best = np.inf
+    n_cand = inst.matrix.shape[0]
+    for pick in itertools.product([0, 1], repeat=n_cand):
+        cols = np.flatnonzero(pick)
+        if len(cols) and np.bincount(site_of[cols]).max() > cap:
+            continue
+        count = np.zeros(inst.n_points, int)
+        for c in cols:
+            count[inst.covers(c)] += 1
+        if (count >= inst.k).sum() >= inst.goal:
+            best = min(best, mast_cost * len(np.unique(site_of[cols])) + len(cols))
+    return best
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_the_mast_aware_milp_finds_the_cheapest_plan_on_merged_points(seed):
+    """Random instances of 9 candidates on 3 sites, where many of the 30 points are seen
+    alike (merged), k = 1 or 2 per point, a cap of 2: the MILP's plan costs what the
+    cheapest plan by enumeration does."""
+    rng = np.random.default_rng(seed)
+    rows = [rng.choice(30, size=rng.integers(4, 16), replace=False) for _ in range(9)]
+    site_of = np.repeat(np.arange(3), 3)
+    need = rng.integers(1, 3, 30).astype(np.int32)
+    base = instance(rows, 30, 1).matrix
+    start = [0, 1, 3, 4, 6, 7]  # two on each site: the goal is at most what they cover
+    count = np.asarray(base[start].sum(axis=0)).ravel()
+    goal = int(rng.integers(1, (count >= need).sum() + 1))
+    inst = CoverInstance(base, goal, need=need, site_of=site_of, cap=2)
+    want = _cheapest_plan(inst, site_of, 2, 2.0)
+    assert len(MergedPoints.of(base, need).weight) < 30  # some points are merged
+    got = drain(sensors_on_sites(inst, site_of, np.arange(3), start, 2.0, 1.0))
+    assert 2.0 * len(np.unique(site_of[got])) + len(got) == want
+    assert np.bincount(site_of[got]).max() <= 2
 
 
 def test_the_mast_aware_milp_counts_a_point_only_at_its_k():
