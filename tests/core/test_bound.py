@@ -483,6 +483,54 @@ def test_the_mast_aware_bound_takes_the_point_duals_value_at_k2_and_refuses_part
     assert got == pytest.approx(2 / 3 * 5.0, rel=1e-5)
 
 
+def _steps_beside(monkeypatch, beside_steps):
+    """Replace ``bound._run``: the solve runs at once, and ``beside_steps`` of the
+    walk beside it are taken first (as many as a solve's time would allow)."""
+    real_run = bound._run
+
+    def run(h, stop=None, beside=None):
+        if beside is not None:
+            for _ in itertools.islice(beside, beside_steps):
+                pass
+        return (yield from real_run(h, stop, None))
+
+    monkeypatch.setattr(bound, "_run", run)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_columns_do_not_depend_on_the_steps_beside_a_solve(seed, monkeypatch):
+    """Priced at duals smoothed towards the dual steps' best point, the LP takes the
+    same columns in the same order whether a solve leaves time for no step beside it
+    or for all of them; both reach the LP's value."""
+    rng = np.random.default_rng(300 + seed)
+    inst = random_instance(rng, n_cand=30, n_points=40)
+    ones, group = np.ones(30), np.arange(30) % 10
+    runs = []
+    for beside_steps in (0, bound.DualPolish.MAX_STEPS):
+        _steps_beside(monkeypatch, beside_steps)
+        runs.append(drain(cover_lp(inst, ones, group, np.arange(1), integral=False)))
+    assert runs[0].columns.tolist() == runs[1].columns.tolist()
+    assert runs[0].value == pytest.approx(runs[1].value, abs=1e-9)
+
+
+def test_smoothed_duals_pick_other_columns_for_the_same_lp(monkeypatch):
+    """On random instances the smoothed duals pick other columns than each round's
+    own on some, and every LP ends at the same value either way."""
+    differ = 0
+    for seed in range(8):
+        rng = np.random.default_rng(400 + seed)
+        inst = random_instance(rng, n_cand=30, n_points=40)
+        ones, group = np.ones(30), np.arange(30) % 10
+        runs = []
+        for smoothing in (0.0, bound.SMOOTHING):
+            monkeypatch.setattr(bound, "SMOOTHING", smoothing)
+            runs.append(drain(cover_lp(inst, ones, group, np.arange(1), integral=False)))
+        assert runs[0].complete and runs[1].complete
+        assert runs[0].value == pytest.approx(runs[1].value, abs=1e-7)
+        differ += runs[0].columns.tolist() != runs[1].columns.tolist()
+    assert differ > 0
+
+
 def _part0(**kwargs):
     """``cover_lp`` on part 0 alone (points 0-2: a, b, c, e; LP 1.1), every candidate
     at one position unless ``group`` says otherwise: (solution, progress reports)."""
@@ -501,10 +549,13 @@ def _part0(**kwargs):
         ([0, 1, 1, 1], 50, [0, 2, 3, 4]),  # a and one of b, c, e; then one a round
     ],
 )
-def test_candidates_join_one_per_position_and_at_most_per_round(group, per_round, columns):
+def test_candidates_join_one_per_position_and_at_most_per_round(
+    group, per_round, columns, monkeypatch
+):
     """From nothing (the artificial column alone: 3, one per point), candidates join
     after each round until none prices below its cost: the LP, 1.1, every report's
-    bound at most that, its values never rising."""
+    bound at most that, its values never rising. (Priced at each round's own duals.)"""
+    monkeypatch.setattr(bound, "SMOOTHING", 0.0)
     sol, reports = _part0(group=np.array(group), per_round=per_round, integral=False)
     assert [r.columns for r in reports] == columns
     assert [r.rounds for r in reports] == list(range(1, len(columns) + 1))
