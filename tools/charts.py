@@ -127,15 +127,16 @@ def bound_chart(results: dict[str, Any], path: Path) -> None:
             ax.annotate(f"{r['cost']:g}", (r["wall_s"], r["cost"]), textcoords="offset points",
                         xytext=(5, 3), fontsize=8)  # fmt: skip
             trace = r.get("trace") or []
-            if trace:
-                t = [p[0] for p in trace] + [r["wall_s"]]
-                best = [p[1] for p in trace] + [r["cost"]]
+            plans = [p for p in trace if p[1] is not None]
+            if plans:
+                t = [p[0] for p in plans] + [r["wall_s"]]
+                best = [p[1] for p in plans] + [r["cost"]]
                 ax.step(t, best, where="post", color=f"C{i}", lw=1, alpha=0.7)
-                proven = [(p[0], p[2]) for p in trace if p[2] is not None]
-                if proven:
-                    ax.step([p[0] for p in proven] + [r["wall_s"]],
-                            [p[1] for p in proven] + [r["lower_bound"]], where="post",
-                            color=f"C{i}", lw=1, ls=":", label=f"{r['config']}: bound so far")  # fmt: skip
+            proven = [(p[0], p[2]) for p in trace if p[2]]  # a bound of 0 proves nothing
+            if proven:
+                ax.step([p[0] for p in proven] + [r["wall_s"]],
+                        [p[1] for p in proven] + [r["lower_bound"]], where="post",
+                        color=f"C{i}", lw=1, ls=":", label=f"{r['config']}: bound so far")  # fmt: skip
         bounds = [r["lower_bound"] for r in cost_rows if r["lower_bound"] is not None]
         if bounds:
             best_bound = max(bounds)

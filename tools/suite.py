@@ -623,11 +623,13 @@ def _bound_point(scene_name: str, tiles: tuple[int, ...], name: str) -> dict[str
     scene = scene.cropped(MODEL.range_m)
     settings = BOUND_RUNS[name]
     run = Run(scene, BVHFactory.of(scene), MODEL, settings)
-    # lp's best plan and its proven bound as they change: [s, best, bound]
+    # lp's best plan and its proven bound as they change: [s, best, bound] (best None
+    # while a ground in parts has no whole plan yet, bound None before the first)
     trace: list[list[Any]] = []
     t0 = time.perf_counter()
     for p in run.steps():
-        if p.best is not None and (not trace or trace[-1][1:] != [p.best, p.bound]):
+        seen = p.best is not None or p.bound is not None
+        if seen and (not trace or trace[-1][1:] != [p.best, p.bound]):
             trace.append([round(time.perf_counter() - t0, 2), p.best, p.bound])
     res = run.result()
     m = res.metrics

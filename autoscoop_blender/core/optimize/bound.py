@@ -12,7 +12,8 @@ is solved by column generation: a restricted LP (HiGHS, warm started) holds a fe
 thousand candidates; its point duals price every candidate with one sparse product,
 ``reduced_c = cost_c - (M pi)_c``; the best candidate of each of the ``per_round``
 most promising positions joins (one per position: neighbouring orientations at one
-position are nearly the same column, and adding them all slows the LP down). An
+position are nearly the same column, and adding them all slows the LP down), priced
+at the duals moved towards the best point of the dual steps (``SMOOTHING``). An
 artificial column keeps the restricted LP feasible: it costs what the dearest
 candidate does per point of the demand (k_max times that with k > 1), so no optimum
 of the full LP leaves demand to it (the goal is at most what can be covered: a point
