@@ -89,8 +89,9 @@ CANCEL_WAIT_S = 0.3
 # A bound is lowered by this much (relative) against the solver's tolerances.
 SAFETY = 1e-6
 # The weight of the dual steps' best point in the duals that price new columns
-# (``cover_lp``; 0: the restricted LP's own). On two_routes 0.3, 0.5, 0.7 and 0.85 took
-# 23, 20, 19 and 19 rounds (51, 36, 37, 39 s), 0 took 27 (78 s).
+# (``cover_lp``; 0: the restricted LP's own). On two_routes' LP alone 0.5 took 21 rounds,
+# 41 s, and 0 took 27 rounds, 78 s; smoothed towards the best point of all the steps
+# (which depends on timing), 0.3, 0.5, 0.7 and 0.85 took 23, 20, 19 and 19 rounds.
 SMOOTHING = 0.5
 # Branch-and-bound nodes of the mast-aware MILP: a limit in work, not seconds, so the
 # plan is the same on a fast and a slow machine.
@@ -591,9 +592,8 @@ def cover_lp(
         # New columns are priced at duals between this round's and the best point of
         # the dual steps (smoothing, after Wentges; ``DualPolish.steady``): the
         # restricted LP's duals swing from round to round and price columns no optimum
-        # needs. On two_routes: 20 rounds, 36 s, where this round's duals alone took 27
-        # rounds, 78 s. When the smoothed duals price no candidate below its cost, this
-        # round's do.
+        # needs (``SMOOTHING``). When the smoothed duals price no candidate below its
+        # cost, this round's do.
         if polish.steady is not None and SMOOTHING > 0:
             mixed = SMOOTHING * polish.steady[0] + (1 - SMOOTHING) * duals
             smoothed = cost - np.asarray(matrix @ mixed.astype(matrix.dtype), dtype=float)
