@@ -145,6 +145,14 @@ def finish(code: int) -> int:
         for signum in _SIGNALS:
             signal.signal(signum, signal.SIG_IGN)
         _State.wakeup[1].send(_FINISHED)
+    bound = sys.modules.get("autoscoop_blender.core.optimize.bound")
+    if bound is not None and bound.solving():
+        # A cancelled solve still runs in its thread: the interpreter's exit could
+        # abort in HiGHS' clean-up (exit -6; seen once in CI after SIGINT during the
+        # fewest masts' MILP), with everything written. So end here, with ``code``.
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
     return code
 
 

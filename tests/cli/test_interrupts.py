@@ -280,3 +280,24 @@ def test_a_held_interrupt_is_raised_when_the_block_ends():
     proc.send_signal(signal.SIGINT)
     out, _ = proc.communicate(timeout=30)
     assert out.strip() == "raised"
+
+
+def test_a_run_that_ends_beside_a_solve_still_running_exits_at_once():
+    """A cancelled HiGHS solve HiGHS has not noticed yet still runs in its thread when
+    the command ends: the process exits then and there with the command's code, not
+    through the interpreter's exit (which waits here for the thread, a non-daemon one,
+    for 60 s; with a daemon HiGHS thread it could abort in HiGHS' clean-up, -6)."""
+    code = (
+        "import sys, threading, time\n"
+        "from headless import interrupts\n"
+        "from autoscoop_blender.core.optimize import bound\n"
+        "threading.Thread(target=time.sleep, args=(60,), name=bound.SOLVE_THREAD).start()\n"
+        "print('written', flush=True)\n"
+        "sys.exit(interrupts.finish(130))\n"
+    )
+    sent = time.monotonic()
+    proc = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=30
+    )
+    assert proc.returncode == 130 and proc.stdout == "written\n", proc.stderr
+    assert time.monotonic() - sent < 20

@@ -86,6 +86,8 @@ I64 = NDArray[np.int64]
 POLL_S = 0.05
 # How long a cancelled solve is waited for, s (``_run``).
 CANCEL_WAIT_S = 0.3
+# The name of a solve's thread (``_run``; ``solving``).
+SOLVE_THREAD = "autoscoop-solve"
 # A bound is lowered by this much (relative) against the solver's tolerances.
 SAFETY = 1e-6
 # The weight of the dual steps' best point in the duals that price new columns
@@ -128,7 +130,7 @@ def _run(
         h.run()
         done.set()
 
-    thread = threading.Thread(target=work, daemon=True)
+    thread = threading.Thread(target=work, daemon=True, name=SOLVE_THREAD)
     thread.start()
     stopped = False
 
@@ -154,6 +156,13 @@ def _run(
     if not stopped:
         return Solve.DONE
     return Solve.STOPPED if done.is_set() else Solve.GONE
+
+
+def solving() -> bool:
+    """Whether a solve still runs in its thread: a cancelled one HiGHS has not noticed
+    yet (``_run`` leaves it). A process that exits then can abort in HiGHS' clean-up
+    ("terminate called without an active exception", exit -6), its work written."""
+    return any(t.name == SOLVE_THREAD and t.is_alive() for t in threading.enumerate())
 
 
 def _empty_rows(h: highspy.Highs, lower: F64, upper: F64) -> None:
