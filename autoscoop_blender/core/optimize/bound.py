@@ -386,7 +386,7 @@ class DualPolish:
         # alike (the steps beside a solve, as many as its time allows, are not): the
         # one that prices new columns, so the columns do not depend on timing (the
         # first steps' sizes do not either: they halve only after PATIENCE > MIN_STEPS).
-        self.steady: tuple[F64, float] | None = None
+        self.steady: F64 | None = None  # its point duals pi (N,)
         self.steady_value = -math.inf
 
     def value(self, pi: F64, sigma: float) -> tuple[float, F64]:
@@ -411,7 +411,7 @@ class DualPolish:
         for _ in range(self.MAX_STEPS if steps is None else steps):
             now, priced = self.value(pi, sigma)
             if self.steps < self.MIN_STEPS and now > self.steady_value + 1e-9:
-                self.steady, self.steady_value = (pi.copy(), sigma), now
+                self.steady, self.steady_value = pi.copy(), now
             if now > self.center_value + 1e-9:
                 self.center, self.center_value, self.since = (pi.copy(), sigma), now, 0
             else:
@@ -604,7 +604,7 @@ def cover_lp(
         # needs (``SMOOTHING``). When the smoothed duals price no candidate below its
         # cost, this round's do.
         if polish.steady is not None and SMOOTHING > 0:
-            mixed = SMOOTHING * polish.steady[0] + (1 - SMOOTHING) * duals
+            mixed = SMOOTHING * polish.steady + (1 - SMOOTHING) * duals
             smoothed = cost - np.asarray(matrix @ mixed.astype(matrix.dtype), dtype=float)
             ahead = np.flatnonzero((smoothed < -1e-9) & ~in_lp)
             if len(ahead):
