@@ -992,3 +992,29 @@ def test_milp_candidates_at_and_past_the_limit(monkeypatch, limit, want):
     inst = rows_instance(rows, 4, 4)
     site_of = np.array([0, 0, 0, 0, 1, 1])
     assert lp_module.milp_candidates(inst, site_of, np.array([0, 1]), []).tolist() == want
+
+
+# Site 0 sees all 5 points, one candidate each, and holds 4 sensors; sites 1 and 2
+# see points 0-2 and 3-4 with one candidate each (``tests/core/test_joint.py``).
+CAPPED = [[0], [1], [2], [3], [4], [0, 1, 2], [3, 4]]
+
+
+@pytest.mark.parametrize("plan", [False, True])
+def test_the_cost_bound_takes_the_joint_bound(plan, monkeypatch):
+    """On CAPPED at a mast cost of 3 the separate bounds prove 1 mast and 2 sensors,
+    3 + 2 = 5; no mast carries 5 sensors, and the joint bound proves the optimum, 8,
+    with a plan or without (either way its LP starts beside the sensors LP)."""
+    calls = spy(monkeypatch, "masts_sensors_lp")
+    problem = HandLP(CAPPED, 5, [0] * 5 + [1, 2], mast_cost=3.0, max_sensors_per_mast=4)
+    (bound, *_), _ = _bound_run(problem, plan=plan)
+    assert (bound.masts, bound.sensors) == (1, 2)
+    assert bound.joint == pytest.approx(8.0)
+    assert bound.objective("cost", 3.0, 1.0) == pytest.approx(8.0)
+    solves = calls["masts_sensors_lp"]
+    # One LP, at 1 mast (which cannot carry the goal): its duals bound 2 masts by the
+    # 2 sensors, 8, which is greedy's plan: nothing is left to prove.
+    assert [call["masts"] for call in solves] == [1]
+    # For the sensors objective it is not sought.
+    sensors = HandLP(CAPPED, 5, [0] * 5 + [1, 2], objective="sensors", max_sensors_per_mast=4)
+    (bound, *_), _ = _bound_run(sensors, plan=plan)
+    assert bound.joint == 0.0 and len(solves) == 1

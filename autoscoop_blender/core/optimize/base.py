@@ -94,7 +94,9 @@ class PlanBound:
     on the cost from the mast-aware LP (``bound.mast_aware_bound``), 0 if not known;
     sensor_cost_lp: a proven lower bound on what the sensors cost together (None:
     ``sensor_cost`` x ``sensors``); with models of different costs ``lp`` is that
-    bound and ``sensors`` follows from it through the dearest model.
+    bound and ``sensors`` follows from it through the dearest model; joint: a proven
+    lower bound on the cost from masts and sensors together (``joint.py``), 0 if not
+    known.
     """
 
     sensors: int
@@ -104,11 +106,12 @@ class PlanBound:
     rounds: int = 0
     cost_lp: float = 0.0
     sensor_cost_lp: float | None = None
+    joint: float = 0.0
 
     def objective(self, objective: str, mast_cost: float, sensor_cost: float) -> float:
         """The bound on ``objective``: sensors, masts, or cost = mast_cost x masts +
         sensor_cost x sensors: the larger of each part at its own bound and the
-        mast-aware LP's bound."""
+        mast-aware LP's and the joint bound."""
         masts = self.masts or 0
         if objective == "sensors":
             return float(self.sensors)
@@ -117,7 +120,7 @@ class PlanBound:
         sensors = self.sensor_cost_lp
         if sensors is None:
             sensors = sensor_cost * self.sensors
-        return max(self.cost_lp, mast_cost * masts + sensors)
+        return max(self.cost_lp, self.joint, mast_cost * masts + sensors)
 
 
 class StopReason:

@@ -298,12 +298,15 @@ class MergedPoints:
 
 @dataclass(frozen=True)
 class LPProgress:
-    """One round of column generation: the restricted LP's value and the bound."""
+    """One round of column generation: the restricted LP's value and the bound; the
+    round's point duals (N,) and the candidates in the LP (None: not known)."""
 
     rounds: int
     value: float
     bound: float
     columns: int
+    duals: F64 | None = None
+    in_lp: I64 | None = None
 
 
 @dataclass(frozen=True)
@@ -335,6 +338,9 @@ class LPSolution:
     # sigma goal - sum_n max(0, sigma - k_n pi_n), for ``mast_aware_bound`` (nan: use
     # ``value``, which equals it when every k is 1).
     dual: float = math.nan
+    # (N,) the last round's point duals (None: solved in parts), where the joint
+    # bound's LP starts (``joint.py``).
+    pi: F64 | None = None
 
     def integer_bound(self) -> int:
         """The bound on an integer objective: the next integer at or above it."""
@@ -574,7 +580,7 @@ def cover_lp(
         dual = total if multi else math.nan
         if not multi and optimal:
             best = max(best, scale * value * (1 - SAFETY) - SAFETY)
-        yield LPProgress(rounds, value, best, len(order))
+        yield LPProgress(rounds, value, best, len(order), duals, np.array(order, dtype=np.int64))
         # Columns in the LP priced below 0 only by round-off (duals clipped at 0) are
         # not new: the LP is complete when no other candidate is.
         negative = np.flatnonzero((reduced < -1e-9) & ~in_lp)
@@ -594,7 +600,7 @@ def cover_lp(
         x = np.asarray(sol.col_value)[first:]
         last = LPSolution(
             value, best, np.array(order, dtype=np.int64), x, priced, reduced, rounds, complete,
-            *line, dual=dual,
+            *line, dual=dual, pi=duals,
         )  # fmt: skip
         if ending:
             return last

@@ -32,6 +32,7 @@ rounding, the mast-aware MILP's plan) is one generator with its stop and deadlin
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import threading
 import time
@@ -77,6 +78,7 @@ from .cover import (
     cost_at,
     improve,
 )
+from .joint import MastsSensors, enough_sensors, joint_bound, masts_sensors_lp
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
@@ -384,7 +386,17 @@ def prove_bound(
     milp = n_parts == 1 or s.objective == "masts"
     so_far = None
     known = None if part is None else part.sites
+    joint = None
+    if part is None and n_parts == 1 and _joint_applies(problem, cands):
+        joint = _JointStart(problem, cands, inst, best, deadline, stop)
+        known = joint.keep_sites(
+            site_cover(inst, cands.position, len(cands.positions), deadline, stop, milp,
+                       _standing(problem))
+        )  # fmt: skip
+        lp_gen = joint.then(lp_gen)
     masts = masts_then_plan(problem, cands, inst, deadline, stop, plan, milp, known)
+    if joint is not None:
+        masts = joint.then(masts)
     both = _both(lp_gen, masts)
     while True:
         try:
@@ -392,12 +404,149 @@ def prove_bound(
         except StopIteration as done:
             lp, (sites, on_sites) = done.value
             break
-        if isinstance(step, LPProgress) and per_sensor is not None:
-            so_far = per_sensor * step.bound
+        if isinstance(step, LPProgress):
+            if joint is not None:
+                joint.latest = step
+            if per_sensor is not None:
+                so_far = per_sensor * step.bound
         if isinstance(step, Incumbent):  # a plan on the fewest masts, known at once
             best = min(best, step.value)
+            if joint is not None:
+                joint.best = best
         yield solution.progress("search", problem.rho, bound=so_far, best=best, stage="bounds")
-    return _plan_bound(lp, sites, cands, problem), lp, on_sites, greedies
+    plan_bound = _plan_bound(lp, sites, cands, problem)
+    if on_sites:
+        best = min(best, plan_value(problem, cands, on_sites))
+    if joint is not None and lp.pi is not None:
+        more = _joint_bound(
+            problem, cands, inst, lp, plan_bound, best, joint.solved, deadline, stop
+        )
+        plan_bound = yield from _progress(more, solution, problem, best, plan_bound)
+    return plan_bound, lp, on_sites, greedies
+
+
+def _joint_applies(problem: Problem, cands: CandidateSet) -> bool:
+    """Whether the joint bound (``joint.py``) is sought: for the cost, with one price
+    a sensor and a positive mast cost."""
+    s = problem.settings
+    price = sensor_price(problem, cands)
+    return s.objective == "cost" and np.ndim(price) == 0 and s.mast_cost > 0
+
+
+class _JointStart:
+    """The joint bound's first LP (``joint.py``), at the fewest masts, started by
+    whichever of the two searches side by side ends first (the sensors LP; the masts'
+    MILPs and the plans on them), so that it takes the core that is free: on
+    two_routes the MILPs end first (57 s, the LP ~75 s); with k = 2 the LP does and
+    the mast-aware MILP runs to the time limit. It starts once the fewest masts are
+    known, from the LP's last round (``latest``; its columns, and the points its
+    duals price), or from the LP itself when it has ended; the LPs solved are in
+    ``solved``. ``best``: the best plan's cost so far (more is not worth proving)."""
+
+    def __init__(
+        self,
+        problem: Problem,
+        cands: CandidateSet,
+        inst: CoverInstance,
+        best: float,
+        deadline: float | None,
+        stop: threading.Event | None,
+    ) -> None:
+        self.problem, self.cands, self.inst = problem, cands, inst
+        self.best, self.deadline, self.stop = best, deadline, stop
+        self.latest: LPProgress | None = None
+        self.sites: SiteSolution | None = None
+        self.lp: LPSolution | None = None
+        self.lp_ended = False
+        self.started = False
+        self.solved: list[MastsSensors] = []
+
+    def keep_sites(
+        self, gen: Generator[None, None, SiteSolution]
+    ) -> Generator[None, None, SiteSolution]:
+        """``gen``'s value (the fewest masts), kept."""
+        self.sites = yield from gen
+        return self.sites
+
+    def then(self, gen: Generator[Any, None, Any]) -> Generator[Any, None, Any]:
+        """``gen``'s value (the LP's, or the plans' on the fewest masts); then the
+        joint LP, unless the other side has started it or it cannot start."""
+        value = yield from gen
+        if isinstance(value, LPSolution):
+            self.lp, self.lp_ended = value, True
+        elif isinstance(value, tuple) and value[1]:  # (sites, the plan on them)
+            self.best = min(self.best, plan_value(self.problem, self.cands, value[1]))
+        while not self.started and not (self.stop is not None and self.stop.is_set()):
+            start = self._start()
+            if start is None:
+                no_duals = self.lp is None or self.lp.pi is None
+                if self.lp_ended and self.latest is None and no_duals:
+                    break  # the LP ended before a round: no duals to start from
+                yield None
+                continue
+            self.started = True
+            columns, duals, m = start
+            s = self.problem.settings
+            price = float(sensor_price(self.problem, self.cands))
+            self.solved.append((yield from masts_sensors_lp(
+                self.inst, np.ones(len(self.cands)), self.cands.position,
+                self.problem.space.standing, m, columns, np.flatnonzero(duals > 0),
+                self.deadline, self.stop, enough_sensors(self.best, s.mast_cost, price, m),
+            )))  # fmt: skip
+        return value
+
+    def _start(self) -> tuple[I64, F64, int] | None:
+        """(columns, point duals, the fewest masts) to start from, None while not known."""
+        if self.sites is None:
+            return None
+        if self.lp is not None and self.lp.pi is not None:
+            return self.lp.columns, self.lp.pi, self.sites.bound
+        step = self.latest
+        if step is None or step.duals is None or step.in_lp is None:
+            return None
+        return step.in_lp, step.duals, self.sites.bound
+
+
+def _progress(
+    gen: Generator[None, None, PlanBound],
+    solution: Solution,
+    problem: Problem,
+    best: float,
+    plan_bound: PlanBound,
+) -> Generator[Progress, None, PlanBound]:
+    """``gen``'s value, with a progress report (the bound so far and ``best``) each time
+    it yields."""
+    s = problem.settings
+    lower = plan_bound.objective(s.objective, s.mast_cost, s.sensor_cost)
+    while True:
+        try:
+            next(gen)
+        except StopIteration as done:
+            return done.value
+        yield solution.progress("search", problem.rho, bound=lower, best=best, stage="bounds")
+
+
+def _joint_bound(
+    problem: Problem,
+    cands: CandidateSet,
+    inst: CoverInstance,
+    lp: LPSolution,
+    plan_bound: PlanBound,
+    best: float,
+    solved: list[MastsSensors],
+    deadline: float | None,
+    stop: threading.Event | None,
+) -> Generator[None, None, PlanBound]:
+    """``plan_bound`` with the joint bound on cost (``joint.joint_bound``; ``solved``:
+    its LPs solved already), from the LP's last columns and duals."""
+    s = problem.settings
+    assert lp.pi is not None
+    joint = yield from joint_bound(
+        inst, cands.position, problem.space.standing, plan_bound.masts or 0, s.mast_cost,
+        float(sensor_price(problem, cands)), float(plan_bound.sensors), lp.columns,
+        np.flatnonzero(lp.pi > 0), best, solved, deadline, stop,
+    )  # fmt: skip
+    return dataclasses.replace(plan_bound, joint=max(plan_bound.joint, joint))
 
 
 def prove_and_plan(

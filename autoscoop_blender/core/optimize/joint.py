@@ -1,0 +1,442 @@
+"""A joint bound on masts and sensors: the fewest sensors any plan on at most m masts needs.
+
+A plan costs ``mast_cost x masts + sensor_cost x sensors``. The masts bound
+(``bound.site_cover``) and the sensors bound (``bound.cover_lp``) are each proven
+alone: neither knows the other, nor the cap on sensors per mast, and their sum is
+loose when the plans on the fewest masts need more sensors than the fewest sensors
+(spread over many masts) do. This module bounds both together.
+
+**The LP.** For a number of masts m, the fewest sensors (at costs ``cost_c``) of
+any plan with at most m new masts, relaxed:
+
+    S_LP(m) = min  sum_c cost_c x_c
+              s.t. sum_c a_nc x_c - k_n u_n >= 0     every point n      (pi_n >= 0)
+                   sum_n u_n >= goal                                    (sigma >= 0)
+                   x_c <= y_s(c),  sum_{c at s} x_c <= cap y_s           every site s
+                   sum_{s not standing} y_s <= m
+                   0 <= u_n, y_s <= 1,  x_c >= 0
+
+(``y_s`` opens site s; a mast that stands already costs nothing and is outside the
+sum). Every plan with at most m new masts is a solution, so its sensors cost at
+least S_LP(m).
+
+**One dual solution bounds every m.** Move the cover rows and the goal row into the
+objective with any pi >= 0, sigma >= 0. What is left splits by site: a site open at
+y_s takes the candidates with the largest excess ``e_c = (A pi)_c - cost_c > 0``, at
+most ``cap`` of them, each at most y_s; so
+
+    S_LP(m') >= f(m') = sigma goal - sum_n max(0, sigma - k_n pi_n)
+                        - sum_{s standing} phi_s - (the m' largest phi_s of the others)
+
+for every m', with ``phi_s`` the sum of the ``cap`` largest excesses at s. A plan
+with m' new masts (m' at least the fewest masts, M) costs at least
+``mast_cost m' + sensor_cost ceil(max(f(m'), S))`` (S: the sensors bound, which
+holds for every m'), and the least of these over m' >= M is the **joint bound**
+(``joint_cost_bound``). On the instance where the cap forces a second mast that
+neither bound sees (``tests/core/test_joint.py``) it is the optimum.
+
+**Row and column generation.** The LP at one m is solved from the sensors LP's
+columns and the points its duals price (on two_routes 4,045 of 16,555): a point
+without its row counts as covered (the goal less those points: a relaxation). Each
+round new columns (the candidates of sites in the LP whose reduced cost,
+``cost_c - (A pi)_c`` plus their site's cap dual, is negative; the best ``cap`` of
+sites outside whose excess beats the masts' dual) join; when none does, the points
+the LP's x leaves short of their k get their rows. Every round's duals give ``f``
+over all points and candidates, so the bound holds whenever the search stops. On
+two_routes at m = 13 it passes 31 (S_LP(13) = 31.02; the sensors LP is 30.93) in
+12 rounds, 38 s, and lifts the cost bound from 70 to 71.
+
+Hand-written pricing around HiGHS (which solves each restricted LP): no library
+generates rows and columns of this model.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Generator
+from dataclasses import dataclass
+
+import highspy
+import numpy as np
+from numpy.typing import NDArray
+from scipy import sparse
+
+from .bound import SAFETY, Solve, _new_highs, _run
+from .cover import CoverInstance
+
+F64 = NDArray[np.float64]
+I64 = NDArray[np.int64]
+
+# The most new columns, and new point rows, a round.
+PER_ROUND = 200
+ROWS_PER_ROUND = 500
+
+
+@dataclass(frozen=True)
+class MastsSensors:
+    """The LP of the fewest sensors on at most ``masts`` masts, as far as it was solved.
+
+    sensors: (n + 1,) f(m') for m' = 0 .. n other sites (n: the sites without a
+    standing mast): a proven lower bound on the sensors' cost of any plan with at most
+    m' new masts, from the best duals found (non-increasing in m'); value: the last
+    restricted LP's optimum (not a bound); rounds; complete: no row and no column was
+    left to add, so ``sensors[masts]`` is S_LP(masts) up to the solver's tolerance."""
+
+    masts: int
+    sensors: F64
+    value: float
+    rounds: int
+    complete: bool
+
+    def at(self, m: int) -> float:
+        """The bound on the sensors' cost of plans with at most ``m`` new masts."""
+        return float(self.sensors[min(max(m, 0), len(self.sensors) - 1)])
+
+
+def dual_curve(
+    inst: CoverInstance,
+    cost: F64,
+    site_of: I64,
+    standing: NDArray[np.bool_],
+    pi: F64,
+    sigma: float,
+) -> F64:
+    """f(m') for m' = 0 .. the sites without a standing mast (see the module
+    docstring), from point duals pi (N,) >= 0 and sigma >= 0, lowered by ``SAFETY``.
+    Prices in float64: a float32 sum of thousands of duals is off by more than the
+    tolerance."""
+    cap = inst.cap if inst.cap is not None else int(np.max(np.bincount(site_of), initial=1))
+    excess = np.maximum(0.0, np.asarray(inst.matrix @ pi, dtype=float) - cost)
+    phi = _site_excess(excess, site_of, len(standing), cap)
+    fixed = float(phi[standing].sum())
+    others = np.sort(phi[~standing])[::-1]
+    base = sigma * inst.goal - float(np.maximum(0.0, sigma - inst.k * pi).sum()) - fixed
+    curve = base - np.concatenate([[0.0], np.cumsum(others)])
+    return curve - SAFETY * (np.abs(curve) + 1.0)
+
+
+def _site_excess(excess: F64, site_of: I64, n_sites: int, cap: int) -> F64:
+    """(n_sites,) the sum of the ``cap`` largest ``excess`` (C,) >= 0 at each site."""
+    order = np.lexsort((-excess, site_of))
+    sites = site_of[order]
+    rank = np.arange(len(order)) - np.searchsorted(sites, sites)
+    top = rank < cap
+    return np.bincount(sites[top], weights=excess[order][top], minlength=n_sites).astype(float)
+
+
+def joint_cost_bound(
+    solved: list[MastsSensors],
+    fewest_masts: int,
+    n_masts: int,
+    mast_cost: float,
+    sensor_cost: float,
+    sensors: float,
+    integral: bool,
+) -> tuple[float, int]:
+    """(the joint bound, the m' where it is least): the least over m' from
+    ``fewest_masts`` to ``n_masts`` (the sites without a standing mast) of
+    ``mast_cost m' + sensor_cost s(m')``, s(m') the largest of the ``solved`` curves
+    at m' and ``sensors`` (the sensors bound), rounded up when ``integral`` (unit
+    sensor costs: whole sensors)."""
+    best, where = math.inf, fewest_masts
+    for m in range(max(fewest_masts, 0), max(n_masts, fewest_masts) + 1):
+        if mast_cost * m + sensor_cost * sensors >= best:
+            break  # s(m') >= sensors for every m': no larger m' is cheaper
+        s = max([sensors] + [j.at(m) for j in solved])
+        if integral:
+            s = max(0.0, math.ceil(s - 1e-6))
+        value = mast_cost * m + sensor_cost * s
+        if value < best:
+            best, where = value, m
+    return best, where
+
+
+class _Model:
+    """The restricted LP in HiGHS, with where each point, site and candidate sits in it.
+
+    Rows: 0 the goal, 1 the masts' budget, then the points', the sites' caps and the
+    candidates' links as they join. Columns: 0 an artificial slack on the goal row
+    (so the restricted LP is always feasible: a budget too small for the goal makes it
+    expensive, and the duals then bound that m' high), then the u, y and x."""
+
+    def __init__(
+        self, inst: CoverInstance, cost: F64, site_of: I64, standing: NDArray[np.bool_], m: int
+    ) -> None:
+        self.inst, self.cost, self.site_of, self.standing = inst, cost, site_of, standing
+        self.cap = inst.cap
+        self.by_point = sparse.csr_matrix(inst.matrix.T)
+        n_cands, n_points = inst.matrix.shape
+        self.row_of = np.full(n_points, -1, dtype=np.int64)
+        self.col_of = np.full(n_cands, -1, dtype=np.int64)
+        self.linked = np.zeros(n_cands, dtype=bool)  # has its link row
+        self.y_of = np.full(len(standing), -1, dtype=np.int64)
+        self.cap_row_of = np.full(len(standing), -1, dtype=np.int64)
+        self.h = h = _new_highs(None)
+        inf = highspy.kHighsInf
+        none_i, none_f = np.zeros(0, np.int32), np.zeros(0)
+        # The goal row's right-hand side: the goal less the points without a row yet.
+        h.addRows(2, np.array([float(inst.goal - n_points), -inf]), np.array([inf, float(m)]),
+                  0, np.zeros(2, np.int32), none_i, none_f)  # fmt: skip
+        slack = float(np.max(cost, initial=1.0)) * float(inst.k.max(initial=1)) * 1e3
+        h.addCols(1, np.array([slack]), np.zeros(1), np.array([inf]), 1,
+                  np.zeros(1, np.int32), np.zeros(1, np.int32), np.ones(1))  # fmt: skip
+        self.outside = n_points  # points without a row
+
+    def _rows(self, count: int, lower: F64, upper: F64, rows: sparse.csr_matrix) -> int:
+        first = self.h.getNumRow()
+        self.h.addRows(count, lower, upper, rows.nnz, rows.indptr[:-1].astype(np.int32),
+                       rows.indices.astype(np.int32), rows.data.astype(float))  # fmt: skip
+        return first
+
+    def _cols(self, cost: F64, upper: F64, cols: sparse.csc_matrix) -> int:
+        first = self.h.getNumCol()
+        self.h.addCols(len(cost), cost, np.zeros(len(cost)), upper, cols.nnz,
+                       cols.indptr[:-1].astype(np.int32), cols.indices.astype(np.int32),
+                       cols.data.astype(float))  # fmt: skip
+        return first
+
+    def add_points(self, points: I64) -> int:
+        """Rows for ``points`` (without one yet): their cover rows over the x in the
+        LP, and their u."""
+        points = points[self.row_of[points] < 0]
+        if not len(points):
+            return 0
+        k, inst = len(points), self.inst
+        sub = self.by_point[points].tocoo()
+        inside = self.col_of[sub.col] >= 0
+        rows = sparse.csr_matrix(
+            (sub.data[inside], (sub.row[inside], self.col_of[sub.col[inside]])),
+            shape=(k, self.h.getNumCol()),
+        )
+        first = self._rows(k, np.zeros(k), np.full(k, highspy.kHighsInf), rows)
+        self.row_of[points] = first + np.arange(k)
+        # u_n: -k_n in its row, 1 in the goal row (row 0).
+        entries = sparse.csc_matrix(
+            (np.concatenate([-inst.k[points].astype(float), np.ones(k)]),
+             (np.concatenate([first + np.arange(k), np.zeros(k, np.int64)]),
+              np.tile(np.arange(k), 2))),
+            shape=(self.h.getNumRow(), k),
+        )  # fmt: skip
+        self._cols(np.zeros(k), np.ones(k), entries)
+        self.outside -= k
+        self.h.changeRowBounds(0, float(self.inst.goal - self.outside), highspy.kHighsInf)
+        return k
+
+    def _add_sites(self, sites: I64) -> None:
+        sites = np.unique(sites[self.y_of[sites] < 0])
+        if not len(sites):
+            return
+        k = len(sites)
+        row, val = [], []
+        if self.cap is not None:
+            first = self._rows(k, np.full(k, -highspy.kHighsInf), np.zeros(k),
+                               sparse.csr_matrix((k, self.h.getNumCol())))  # fmt: skip
+            self.cap_row_of[sites] = first + np.arange(k)
+            row.append(self.cap_row_of[sites])
+            val.append(np.full(k, -float(self.cap)))
+        budget = ~self.standing[sites]  # a standing mast is outside the budget (row 1)
+        row.append(np.ones(int(budget.sum()), np.int64))
+        val.append(np.ones(int(budget.sum())))
+        col = [np.arange(k)] * (self.cap is not None) + [np.flatnonzero(budget)]
+        entries = sparse.csc_matrix(
+            (np.concatenate(val), (np.concatenate(row), np.concatenate(col))),
+            shape=(self.h.getNumRow(), k),
+        )
+        self.y_of[sites] = self._cols(np.zeros(k), np.ones(k), entries) + np.arange(k)
+
+    def add_columns(self, cands: I64) -> int:
+        """Columns for ``cands`` (not in the LP yet), their sites' y and cap rows,
+        and their link rows ``x_c - y_s <= 0``."""
+        cands = np.unique(cands[self.col_of[cands] < 0])
+        if not len(cands):
+            return 0
+        k = len(cands)
+        self._add_sites(self.site_of[cands])
+        sub = self.inst.matrix[cands].tocoo()
+        inside = self.row_of[sub.col] >= 0
+        row = [self.row_of[sub.col[inside]]]
+        col = [sub.row[inside]]
+        val = [sub.data[inside].astype(float)]
+        if self.cap is not None:
+            row.append(self.cap_row_of[self.site_of[cands]])
+            col.append(np.arange(k))
+            val.append(np.ones(k))
+        entries = sparse.csc_matrix(
+            (np.concatenate(val), (np.concatenate(row), np.concatenate(col))),
+            shape=(self.h.getNumRow(), k),
+        )
+        self.col_of[cands] = self._cols(self.cost[cands], np.ones(k), entries) + np.arange(k)
+        return k
+
+    def add_links(self) -> int:
+        """Link rows ``x_c - y_s <= 0`` for the candidates in the LP whose x exceeds
+        their site's y (the others hold without a row: only the cap rows tie x to y
+        until a solution breaks a link)."""
+        values = np.asarray(self.h.getSolution().col_value)
+        cands = np.flatnonzero((self.col_of >= 0) & ~self.linked)
+        cols, sites = self.col_of[cands], self.y_of[self.site_of[cands]]
+        cands = cands[values[cols] > values[sites] + 1e-9]
+        if not len(cands):
+            return 0
+        k = len(cands)
+        links = sparse.csr_matrix(
+            (np.tile([1.0, -1.0], k),
+             (np.repeat(np.arange(k), 2),
+              np.stack([self.col_of[cands], self.y_of[self.site_of[cands]]], 1).ravel())),
+            shape=(k, self.h.getNumCol()),
+        )  # fmt: skip
+        self._rows(k, np.full(k, -highspy.kHighsInf), np.zeros(k), links)
+        self.linked[cands] = True
+        return k
+
+    def duals(self) -> tuple[F64, float, float, F64]:
+        """(pi (N,), sigma, the budget's dual, each site's cap dual (sites,)), all >= 0
+        (0 for rows not in the LP)."""
+        row_dual = np.asarray(self.h.getSolution().row_dual)
+        pi = np.zeros(len(self.row_of))
+        has = self.row_of >= 0
+        pi[has] = np.maximum(row_dual[self.row_of[has]], 0.0)
+        beta = np.zeros(len(self.cap_row_of))
+        on = self.cap_row_of >= 0
+        beta[on] = np.maximum(-row_dual[self.cap_row_of[on]], 0.0)
+        return pi, max(float(row_dual[0]), 0.0), max(-float(row_dual[1]), 0.0), beta
+
+    def x(self) -> F64:
+        """(C,) every candidate's value in the LP (0 outside it)."""
+        values = np.asarray(self.h.getSolution().col_value)
+        x = np.zeros(len(self.col_of))
+        has = self.col_of >= 0
+        x[has] = values[self.col_of[has]]
+        return x
+
+
+def masts_sensors_lp(
+    inst: CoverInstance,
+    cost: F64,
+    site_of: I64,
+    standing: NDArray[np.bool_],
+    masts: int,
+    columns: I64,
+    points: I64,
+    deadline: float | None = None,
+    stop: threading.Event | None = None,
+    enough: float = math.inf,
+) -> Generator[None, None, MastsSensors]:
+    """The LP of the fewest sensors on at most ``masts`` new masts (see the module
+    docstring), by rows and columns, from ``columns`` (candidates, e.g. the sensors
+    LP's) and ``points`` (e.g. those its duals price). cost: (C,) > 0; standing:
+    (sites,) where a mast stands already. Stops when nothing is left to add, at
+    ``deadline`` (``time.perf_counter()``), at ``stop``, or once the bound at
+    ``masts`` reaches ``enough`` (more would prove nothing the caller needs: the
+    restricted LP's value is no upper bound to stop at while rows are missing). Yields
+    None while HiGHS works."""
+    n_sites = len(standing)
+    cap = inst.cap if inst.cap is not None else int(np.max(np.bincount(site_of), initial=1))
+    lp = _Model(inst, cost, site_of, standing, masts)
+    lp.add_points(np.asarray(points, dtype=np.int64))
+    lp.add_columns(np.asarray(columns, dtype=np.int64))
+    best: F64 | None = None
+    value, rounds, complete = math.inf, 0, False
+    while True:
+        if deadline is not None:
+            lp.h.setOptionValue("time_limit", max(deadline - time.perf_counter(), 0.01))
+        if (yield from _run(lp.h, stop)) is not Solve.DONE:
+            break
+        if lp.h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
+            break
+        rounds += 1
+        value = float(lp.h.getInfo().objective_function_value)
+        pi, sigma, mu, beta = lp.duals()
+        curve = dual_curve(inst, cost, site_of, standing, pi, sigma)
+        if best is None or curve[min(masts, len(curve) - 1)] > best[min(masts, len(best) - 1)]:
+            best = curve
+        if best[min(masts, len(best) - 1)] >= enough:
+            break
+        if stop is not None and stop.is_set():
+            break
+        if deadline is not None and time.perf_counter() > deadline:
+            break
+        # Columns: candidates at sites in the LP with a negative reduced cost; at
+        # sites outside it, the best ``cap`` where their excess beats the budget's
+        # dual (a standing mast's, any excess).
+        priced = np.asarray(inst.matrix @ pi, dtype=float)
+        reduced = cost - priced + beta[site_of]
+        open_site = lp.y_of >= 0
+        joins = np.flatnonzero((reduced < -1e-9) & (lp.col_of < 0) & open_site[site_of])
+        joins = joins[np.argsort(reduced[joins], kind="stable")[:PER_ROUND]]
+        excess = np.maximum(0.0, priced - cost)
+        phi = _site_excess(excess, site_of, n_sites, cap)
+        gain = phi - np.where(standing, 0.0, mu)
+        new_sites = np.flatnonzero((gain > 1e-9) & ~open_site)
+        new_sites = new_sites[np.argsort(-gain[new_sites], kind="stable")][
+            : max(1, PER_ROUND // cap)
+        ]
+        at_new = np.flatnonzero(np.isin(site_of, new_sites) & (excess > 0))
+        order = at_new[np.lexsort((-excess[at_new], site_of[at_new]))]
+        rank = np.arange(len(order)) - np.searchsorted(site_of[order], site_of[order])
+        # Rows: the points the LP's x leaves short of their k (no row yet).
+        covered = np.asarray(lp.by_point @ lp.x(), dtype=float)
+        short = np.flatnonzero((lp.row_of < 0) & (covered < inst.k - 1e-6))
+        short = short[np.argsort(covered[short] - inst.k[short], kind="stable")]
+        added = lp.add_points(short[:ROWS_PER_ROUND]) + lp.add_links()
+        added += lp.add_columns(np.concatenate([joins, order[rank < cap]]))
+        if added == 0:
+            complete = True
+            break
+    if best is None:
+        best = np.zeros(int(np.count_nonzero(~standing)) + 1)
+    return MastsSensors(masts, best, value, rounds, complete)
+
+
+def enough_sensors(best: float, mast_cost: float, sensor_price: float, masts: int) -> float:
+    """The sensors on ``masts`` masts beyond which the joint bound there proves
+    nothing more: it then reaches ``best``, the best plan's cost."""
+    return (best - mast_cost * masts) / sensor_price - 1 + 1e-5
+
+
+def joint_bound(
+    inst: CoverInstance,
+    site_of: I64,
+    standing: NDArray[np.bool_],
+    fewest: int,
+    mast_cost: float,
+    sensor_price: float,
+    sensors: float,
+    columns: I64,
+    points: I64,
+    best: float = math.inf,
+    solved: list[MastsSensors] | None = None,
+    deadline: float | None = None,
+    stop: threading.Event | None = None,
+) -> Generator[None, None, float]:
+    """The joint bound on a plan's cost, ``mast_cost`` a new mast and ``sensor_price``
+    a sensor (see the module docstring): the LP of the fewest sensors on at most m
+    masts, solved at the m where the bound is least (``joint_cost_bound``; ``solved``:
+    those solved already, and it gets the new ones) until that m is solved (its value
+    there is then final), as far as the ``deadline`` and ``stop`` allow, and while
+    the best plan's cost ``best`` is above it. fewest: a lower bound on the new masts;
+    sensors: on the sensors; columns, points: where each LP starts
+    (``masts_sensors_lp``)."""
+    solved = [] if solved is None else solved
+    n_masts = int(np.count_nonzero(~standing))
+    ones = np.ones(inst.matrix.shape[0])
+
+    def least() -> tuple[float, int]:
+        return joint_cost_bound(
+            solved, fewest, n_masts, mast_cost, sensor_price, sensors, integral=True
+        )
+
+    while stop is None or not stop.is_set():
+        if deadline is not None and time.perf_counter() >= deadline:
+            break
+        value, m = least()
+        # Solved at m already: to the end (final), or as far as time allowed.
+        if value >= best or any(j.masts == m for j in solved):
+            break
+        solved.append((yield from masts_sensors_lp(
+            inst, ones, site_of, standing, m, columns, points, deadline, stop,
+            enough_sensors(best, mast_cost, sensor_price, m),
+        )))  # fmt: skip
+    return least()[0]

@@ -1,0 +1,209 @@
+"""The joint bound on masts and sensors (``core/optimize/joint.py``): against plans
+worked out by hand, a brute-force optimum, and the LP solved whole by other code."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from scipy import optimize, sparse
+
+from autoscoop_blender.core.optimize import joint
+from autoscoop_blender.core.optimize.cover import CoverInstance
+from tests.core.test_lp import steps
+
+
+def _instance(rows, n_points, site_of, goal, cap, need=None):
+    """rows[c]: the points candidate c covers; site_of[c]: its site."""
+    data = [(c, n) for c, points in enumerate(rows) for n in points]
+    r, n = zip(*data, strict=True) if data else ((), ())
+    matrix = sparse.csr_matrix(
+        (np.ones(len(r), np.float32), (r, n)), shape=(len(rows), n_points)
+    )
+    need = None if need is None else np.asarray(need, np.int32)
+    site_of = np.asarray(site_of, np.int64)
+    return CoverInstance(matrix, goal, need=need, site_of=site_of, cap=cap)
+
+
+def _bound(inst, mast_cost, standing=None, fewest=0, sensors=0.0):
+    """The joint bound from no columns and no rows: the search adds what it needs."""
+    n_sites = int(inst.site_of.max()) + 1
+    standing = np.zeros(n_sites, bool) if standing is None else np.asarray(standing)
+    go = joint.joint_bound(
+        inst, inst.site_of, standing, fewest, mast_cost, 1.0, sensors,
+        np.zeros(0, np.int64), np.zeros(0, np.int64),
+    )  # fmt: skip
+    return steps(go)[0]
+
+
+def _brute_force(inst, mast_cost, standing):
+    """The cheapest plan by trying every set of candidates: a new mast per site used
+    (none where one stands), one per sensor, at most ``cap`` a site, and at least
+    ``goal`` points covered to their k (inf: none reaches it)."""
+    m = inst.matrix.toarray() > 0
+    best = math.inf
+    for size in range(len(m) + 1):
+        for chosen in itertools.combinations(range(len(m)), size):
+            chosen = list(chosen)
+            sites, per = np.unique(inst.site_of[chosen], return_counts=True)
+            if len(per) and per.max() > inst.cap:
+                continue
+            covered = np.count_nonzero(m[chosen].sum(axis=0) >= inst.k)
+            if covered >= inst.goal:
+                new = np.count_nonzero(~standing[sites])
+                best = min(best, mast_cost * new + size)
+    return best
+
+
+def _direct_lp(inst, masts, standing):
+    """S_LP(masts) by scipy's linprog over every row and column at once (variables:
+    x (C), u (N), y (sites))."""
+    a = inst.matrix.toarray().astype(float)
+    n_cands, n_points = a.shape
+    n_sites = len(standing)
+    n_var = n_cands + n_points + n_sites
+    cost = np.concatenate([np.ones(n_cands), np.zeros(n_points + n_sites)])
+    rows, rhs = [], []
+    for n in range(n_points):  # k_n u_n - sum_c a_nc x_c <= 0
+        row = np.zeros(n_var)
+        row[:n_cands] = -a[:, n]
+        row[n_cands + n] = inst.k[n]
+        rows.append(row), rhs.append(0.0)
+    row = np.zeros(n_var)
+    row[n_cands : n_cands + n_points] = -1.0
+    rows.append(row), rhs.append(-float(inst.goal))
+    for c in range(n_cands):  # x_c - y_s <= 0
+        row = np.zeros(n_var)
+        row[c], row[n_cands + n_points + inst.site_of[c]] = 1.0, -1.0
+        rows.append(row), rhs.append(0.0)
+    for s in range(n_sites):  # sum_{c at s} x_c - cap y_s <= 0
+        row = np.zeros(n_var)
+        row[:n_cands] = inst.site_of == s
+        row[n_cands + n_points + s] = -inst.cap
+        rows.append(row), rhs.append(0.0)
+    row = np.zeros(n_var)
+    row[n_cands + n_points :] = ~standing
+    rows.append(row), rhs.append(float(masts))
+    res = optimize.linprog(cost, np.array(rows), np.array(rhs), bounds=(0, 1), method="highs")
+    return res.fun if res.status == 0 else math.inf
+
+
+def test_the_cap_forces_a_second_mast_that_neither_bound_sees():
+    """Site 0 sees all 5 points, one candidate each, but holds 4 sensors; sites 1 and
+    2 see points 0-2 and 3-4 with one candidate each. The fewest masts are 1 (site 0,
+    without the cap) and the fewest sensors 2 (on sites 1 and 2): apart, 3 x 1 + 2 = 5.
+    One mast cannot carry 5 sensors, so every plan has 2 masts; the cheapest is sites
+    1 and 2 (3 x 2 + 2 = 8, where sites 0 and 1 cost 6 + 3). The joint bound is 8."""
+    rows = [[0], [1], [2], [3], [4], [0, 1, 2], [3, 4]]
+    inst = _instance(rows, 5, [0, 0, 0, 0, 0, 1, 2], goal=5, cap=4)
+    standing = np.zeros(3, bool)
+    assert _brute_force(inst, 3.0, standing) == 8
+    assert _bound(inst, 3.0, fewest=1, sensors=2.0) == pytest.approx(8.0)
+    # Without the cap one mast does: 3 + 5 = 8 on site 0, or 8 on sites 1 and 2.
+    assert _bound(_instance(rows, 5, [0] * 5 + [1, 2], goal=5, cap=5), 3.0) == 8.0
+    # At a mast cost of 1 the 5 sensors on one mast would cost 6 and 2 masts 4: the
+    # joint bound is 4 (the separate bounds give 1 + 2 = 3).
+    assert _bound(inst, 1.0, fewest=1, sensors=2.0) == 4.0
+
+
+def test_a_standing_mast_is_free_and_outside_the_budget():
+    """The same with a mast standing at site 0: its 4 sensors leave a point to a new
+    mast. The cheapest is site 1's candidate (points 0-2) with site 0's for points 3
+    and 4: one new mast, 3 sensors, cost 6. By hand, on one new mast the LP puts x = a
+    on site 1 and b on site 2 (a + b <= 1), 1 - a or 1 - b on site 0's: 5 - 2a - b,
+    least at a = 1: 3 sensors, so 3 + 3 = 6; on two new masts 2 sensors, 6 + 2 = 8;
+    on none site 0 cannot cover the 5 points."""
+    rows = [[0], [1], [2], [3], [4], [0, 1, 2], [3, 4]]
+    inst = _instance(rows, 5, [0, 0, 0, 0, 0, 1, 2], goal=5, cap=4)
+    standing = np.array([True, False, False])
+    assert _brute_force(inst, 3.0, standing) == 6
+    assert _bound(inst, 3.0, standing) == pytest.approx(6.0)
+
+
+def test_a_sensor_needs_its_whole_mast():
+    """Sites 0 and 1 see points 0-1 and 2-3 with one candidate each; site 2 sees each
+    of the 4 points with a candidate of its own (cap 4). On one mast only site 2
+    covers all: 4 sensors, 3 + 4 = 7; on two, sites 0 and 1: 6 + 2 = 8. Without
+    ``x_c <= y_s`` the LP would open sites 0 and 1 a quarter each (4 y_s >= x_c) and
+    prove only 3 + 2 = 5."""
+    rows = [[0, 1], [2, 3], [0], [1], [2], [3]]
+    inst = _instance(rows, 4, [0, 1, 2, 2, 2, 2], goal=4, cap=4)
+    assert _brute_force(inst, 3.0, np.zeros(3, bool)) == 7
+    assert _bound(inst, 3.0, fewest=1, sensors=2.0) == pytest.approx(7.0)
+    solved = []
+    go = joint.joint_bound(
+        inst, inst.site_of, np.zeros(3, bool), 1, 3.0, 1.0, 2.0,
+        np.zeros(0, np.int64), np.zeros(0, np.int64), solved=solved,
+    )  # fmt: skip
+    steps(go)
+    assert [(lp.masts, lp.complete) for lp in solved] == [(1, True)]
+    assert solved[0].value == pytest.approx(4.0) and solved[0].at(1) == pytest.approx(4.0, abs=1e-5)
+
+
+def test_a_point_joins_while_short_of_its_k(monkeypatch):
+    """Points 0 and 1 each need 2 sensors: candidate 0 sees both, 1 sees point 0 and 2
+    sees point 1 (one site, cap 3): all three are needed. With one row a round, point
+    0 joins first and its LP (candidates 0 and 1) leaves point 1 with one sensor: it
+    must join too, and the LP is 3. (Every column is there from the start, so no
+    round adds columns and rows from the same stale x.)"""
+    monkeypatch.setattr(joint, "ROWS_PER_ROUND", 1)
+    inst = _instance([[0, 1], [0], [1]], 2, [0, 0, 0], goal=2, cap=3, need=[2, 2])
+    solved = []
+    go = joint.joint_bound(
+        inst, inst.site_of, np.zeros(1, bool), 1, 3.0, 1.0, 0.0,
+        np.arange(3), np.zeros(0, np.int64), solved=solved,
+    )  # fmt: skip
+    assert steps(go)[0] == pytest.approx(6.0)
+    assert solved[0].complete and solved[0].value == pytest.approx(3.0)
+
+
+@st.composite
+def instances(draw):
+    n_sites = draw(st.integers(1, 3))
+    n_points = draw(st.integers(1, 6))
+    site_of = draw(st.lists(st.integers(0, n_sites - 1), min_size=1, max_size=8))
+    site_of = np.sort(np.array(site_of, np.int64))
+    n_sites = int(site_of.max()) + 1
+    rows = [
+        draw(st.lists(st.integers(0, n_points - 1), max_size=n_points, unique=True))
+        for _ in site_of
+    ]
+    need = draw(st.lists(st.integers(1, 2), min_size=n_points, max_size=n_points))
+    cap = draw(st.integers(1, 3))
+    goal = draw(st.integers(1, n_points))
+    standing = np.array(draw(st.lists(st.booleans(), min_size=n_sites, max_size=n_sites)))
+    mast_cost = draw(st.sampled_from([0.5, 1.0, 3.0]))
+    return _instance(rows, n_points, site_of, goal, cap, need), standing, mast_cost
+
+
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(instances(), st.sampled_from([1, 200]), st.sampled_from([1, 500]))
+def test_the_joint_bound_never_exceeds_the_optimum(case, per_round, rows_per_round):
+    """On random instances with a cap, k = 1 or 2, masts standing: the joint bound is
+    at most the brute-force optimum; each LP, solved to the end, is S_LP(m) as
+    linprog finds it over the whole model; and its duals bound S_LP at every m'. One
+    column or one row a round makes each round's pricing count."""
+    inst, standing, mast_cost = case
+    best = _brute_force(inst, mast_cost, standing)
+    solved = []
+    go = joint.joint_bound(
+        inst, inst.site_of, standing, 0, mast_cost, 1.0, 0.0,
+        np.zeros(0, np.int64), np.zeros(0, np.int64), solved=solved,
+    )  # fmt: skip
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(joint, "PER_ROUND", per_round)
+        patch.setattr(joint, "ROWS_PER_ROUND", rows_per_round)
+        bound = steps(go)[0]
+    assert bound <= best + 1e-6
+    for lp in solved:
+        assert lp.complete
+        direct = _direct_lp(inst, lp.masts, standing)
+        if math.isfinite(direct):
+            assert lp.value == pytest.approx(direct, abs=1e-5)
+            assert lp.at(lp.masts) == pytest.approx(direct, abs=1e-5)
+        for m in range(len(lp.sensors)):
+            assert lp.at(m) <= _direct_lp(inst, m, standing) + 1e-6
