@@ -21,9 +21,7 @@ def _instance(rows, n_points, site_of, goal, cap, need=None):
     """rows[c]: the points candidate c covers; site_of[c]: its site."""
     data = [(c, n) for c, points in enumerate(rows) for n in points]
     r, n = zip(*data, strict=True) if data else ((), ())
-    matrix = sparse.csr_matrix(
-        (np.ones(len(r), np.float32), (r, n)), shape=(len(rows), n_points)
-    )
+    matrix = sparse.csr_matrix((np.ones(len(r), np.float32), (r, n)), shape=(len(rows), n_points))
     need = None if need is None else np.asarray(need, np.int32)
     site_of = np.asarray(site_of, np.int64)
     return CoverInstance(matrix, goal, need=need, site_of=site_of, cap=cap)
