@@ -426,7 +426,8 @@ def objective_metrics(
     sensor_cost x sensors); objective: the value of the
     settings' objective (cost, sensors or masts); lower_bound: no plan in
     ``bound_scope`` has a lower objective; gap = (objective - lower_bound) / objective;
-    sensors_lower_bound, masts_lower_bound: the bounds on each part; lp_bound: the LP
+    sensors_lower_bound, masts_lower_bound: the bounds on each part; joint_lower_bound:
+    on the cost from masts and sensors together (``joint.py``; None: not proven); lp_bound: the LP
     relaxation's bound on the sensors, before rounding up (with models of different
     costs: on what the sensors cost).
     """
@@ -441,6 +442,7 @@ def objective_metrics(
         "gap": None,
         "sensors_lower_bound": None,
         "masts_lower_bound": None,
+        "joint_lower_bound": None,
         "lp_bound": None,
         "lp_rounds": None,
         "bound_scope": None,
@@ -452,6 +454,7 @@ def objective_metrics(
             gap=round((value - lower) / value, 4) if value > 0 else 0.0,
             sensors_lower_bound=bound.sensors,
             masts_lower_bound=bound.masts,
+            joint_lower_bound=round(bound.joint, 4) if bound.joint > 0 else None,
             lp_bound=round(bound.lp, 4),
             lp_rounds=bound.rounds,
             bound_scope=bound.scope,

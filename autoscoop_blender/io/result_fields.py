@@ -102,6 +102,11 @@ METRICS: Fields = {
     "gap": ("number", "(objective - lower_bound) / objective; 0 means proven optimal"),
     "sensors_lower_bound": ("integer", "no plan has fewer sensors"),
     "masts_lower_bound": ("integer", "no plan has fewer masts"),
+    "joint_lower_bound": (
+        "number",
+        "cost: no plan costs less, from masts and sensors together (the fewest sensors "
+        "any plan on m masts needs, for every m); null when not proven",
+    ),
     "lp_bound": ("number", "the LP's bound on the sensors' cost before rounding up"),
     "lp_rounds": ("integer", "column generation rounds of the LP"),
     "bound_scope": (
