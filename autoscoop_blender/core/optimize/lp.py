@@ -387,6 +387,7 @@ def prove_bound(
     so_far = None
     known = None if part is None else part.sites
     joint = None
+    apart: PlanBound | None = None  # the bounds apart, once known beside the joint LP
     if part is None and n_parts == 1 and _joint_applies(problem, cands):
         joint = _JointStart(problem, cands, inst, best, deadline, stop)
         known = joint.keep_sites(
@@ -413,6 +414,10 @@ def prove_bound(
             best = min(best, step.value)
             if joint is not None:
                 joint.best = best
+        if joint is not None and joint.lp is not None and joint.sites is not None and not apart:
+            # The LP and the masts are done while the joint LP works: their bound.
+            apart = _plan_bound(joint.lp, joint.sites, cands, problem)
+            so_far = apart.objective(s.objective, s.mast_cost, s.sensor_cost)
         yield solution.progress("search", problem.rho, bound=so_far, best=best, stage="bounds")
     plan_bound = _plan_bound(lp, sites, cands, problem)
     if on_sites:
