@@ -7,8 +7,10 @@ On the problem's candidate set (``core/candidates.py``):
    ``budget.PART_POINTS`` target points, ``bound.split_cover_lp``) and, in a second
    thread, the fewest masts by a MILP over positions (``bound.site_cover``; its LP
    only on a target in parts) prove the lower bounds: sensors, masts, and cost (the
-   larger of mast_cost x masts + sensor_cost x sensors and the mast-aware LP's
-   bound);
+   largest of mast_cost x masts + sensor_cost x sensors, the mast-aware LP's bound
+   and, on a ground solved whole, the joint bound: the fewest sensors on at most m
+   masts, for every m, by an LP started on whichever thread frees first,
+   ``joint.py``);
 3. still in the second thread, plans on the positions of the fewest masts and on
    those of its LP relaxation: greedy per cost (a new mast costs extra), improved,
    masts closed while that is cheaper; then the mast-aware MILP over the cheaper
