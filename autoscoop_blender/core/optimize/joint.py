@@ -63,7 +63,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import sparse
 
-from .bound import SAFETY, Solve, _new_highs, _run
+from .bound import SAFETY, Solve, _add_columns, _le_zero_rows, _new_highs, _run
 from .cover import CoverInstance
 
 F64 = NDArray[np.float64]
@@ -95,35 +95,42 @@ class MastsSensors:
         return float(self.sensors[min(max(m, 0), len(self.sensors) - 1)])
 
 
+def _cap(inst: CoverInstance, site_of: I64) -> int:
+    """The most candidates a site may hold: the instance's cap, or all of a site's."""
+    return inst.cap if inst.cap is not None else int(np.max(np.bincount(site_of), initial=1))
+
+
+def site_excess(
+    inst: CoverInstance, cost: F64, site_of: I64, n_sites: int, pi: F64
+) -> tuple[F64, F64]:
+    """((C,) each candidate's excess max(0, (A pi)_c - cost_c), (n_sites,) phi_s: the
+    sum of the cap largest at each site), for point duals pi (N,) >= 0. Prices in
+    float64: a float32 sum of thousands of duals is off by more than the tolerance."""
+    excess = np.maximum(0.0, np.asarray(inst.matrix @ pi, dtype=float) - cost)
+    top = _top_per_site(excess, site_of, _cap(inst, site_of))
+    phi = np.bincount(site_of[top], weights=excess[top], minlength=n_sites).astype(float)
+    return excess, phi
+
+
+def _top_per_site(score: F64, site_of: I64, cap: int) -> I64:
+    """The indices of the ``cap`` largest ``score`` at each site (of ``site_of``)."""
+    order = np.lexsort((-score, site_of))
+    sites = site_of[order]
+    rank = np.arange(len(order)) - np.searchsorted(sites, sites)
+    return order[rank < cap]
+
+
 def dual_curve(
-    inst: CoverInstance,
-    cost: F64,
-    site_of: I64,
-    standing: NDArray[np.bool_],
-    pi: F64,
-    sigma: float,
+    inst: CoverInstance, phi: F64, standing: NDArray[np.bool_], pi: F64, sigma: float
 ) -> F64:
     """f(m') for m' = 0 .. the sites without a standing mast (see the module
-    docstring), from point duals pi (N,) >= 0 and sigma >= 0, lowered by ``SAFETY``.
-    Prices in float64: a float32 sum of thousands of duals is off by more than the
-    tolerance."""
-    cap = inst.cap if inst.cap is not None else int(np.max(np.bincount(site_of), initial=1))
-    excess = np.maximum(0.0, np.asarray(inst.matrix @ pi, dtype=float) - cost)
-    phi = _site_excess(excess, site_of, len(standing), cap)
+    docstring), from point duals pi (N,) >= 0, sigma >= 0 and their sites' excesses
+    phi (sites,) (``site_excess``), lowered by ``SAFETY``."""
     fixed = float(phi[standing].sum())
     others = np.sort(phi[~standing])[::-1]
     base = sigma * inst.goal - float(np.maximum(0.0, sigma - inst.k * pi).sum()) - fixed
     curve = base - np.concatenate([[0.0], np.cumsum(others)])
     return curve - SAFETY * (np.abs(curve) + 1.0)
-
-
-def _site_excess(excess: F64, site_of: I64, n_sites: int, cap: int) -> F64:
-    """(n_sites,) the sum of the ``cap`` largest ``excess`` (C,) >= 0 at each site."""
-    order = np.lexsort((-excess, site_of))
-    sites = site_of[order]
-    rank = np.arange(len(order)) - np.searchsorted(sites, sites)
-    top = rank < cap
-    return np.bincount(sites[top], weights=excess[order][top], minlength=n_sites).astype(float)
 
 
 def joint_cost_bound(
@@ -184,17 +191,18 @@ class _Model:
                   np.zeros(1, np.int32), np.zeros(1, np.int32), np.ones(1))  # fmt: skip
         self.outside = n_points  # points without a row
 
-    def _rows(self, count: int, lower: F64, upper: F64, rows: sparse.csr_matrix) -> int:
+    def _le_zero(self, rows: sparse.csr_matrix) -> int:
+        """Rows ``rows @ columns <= 0``; the index of the first."""
         first = self.h.getNumRow()
-        self.h.addRows(count, lower, upper, rows.nnz, rows.indptr[:-1].astype(np.int32),
-                       rows.indices.astype(np.int32), rows.data.astype(float))  # fmt: skip
+        _le_zero_rows(self.h, rows)
         return first
 
-    def _cols(self, cost: F64, upper: F64, cols: sparse.csc_matrix) -> int:
+    def _cols(self, cost: F64, cols: sparse.csc_matrix) -> int:
+        """Columns in [0, 1] with the entries of ``cols`` (rows so far, new columns);
+        the index of the first."""
         first = self.h.getNumCol()
-        self.h.addCols(len(cost), cost, np.zeros(len(cost)), upper, cols.nnz,
-                       cols.indptr[:-1].astype(np.int32), cols.indices.astype(np.int32),
-                       cols.data.astype(float))  # fmt: skip
+        by_column = sparse.csr_matrix(cols.T)
+        _add_columns(self.h, by_column, cost, 1.0, by_column.data)
         return first
 
     def add_points(self, points: I64) -> int:
@@ -210,7 +218,10 @@ class _Model:
             (sub.data[inside], (sub.row[inside], self.col_of[sub.col[inside]])),
             shape=(k, self.h.getNumCol()),
         )
-        first = self._rows(k, np.zeros(k), np.full(k, highspy.kHighsInf), rows)
+        first = self.h.getNumRow()
+        self.h.addRows(k, np.zeros(k), np.full(k, highspy.kHighsInf), rows.nnz,
+                       rows.indptr[:-1].astype(np.int32), rows.indices.astype(np.int32),
+                       rows.data.astype(float))  # fmt: skip
         self.row_of[points] = first + np.arange(k)
         # u_n: -k_n in its row, 1 in the goal row (row 0).
         entries = sparse.csc_matrix(
@@ -219,7 +230,7 @@ class _Model:
               np.tile(np.arange(k), 2))),
             shape=(self.h.getNumRow(), k),
         )  # fmt: skip
-        self._cols(np.zeros(k), np.ones(k), entries)
+        self._cols(np.zeros(k), entries)
         self.outside -= k
         self.h.changeRowBounds(0, float(self.inst.goal - self.outside), highspy.kHighsInf)
         return k
@@ -231,8 +242,7 @@ class _Model:
         k = len(sites)
         row, val = [], []
         if self.cap is not None:
-            first = self._rows(k, np.full(k, -highspy.kHighsInf), np.zeros(k),
-                               sparse.csr_matrix((k, self.h.getNumCol())))  # fmt: skip
+            first = self._le_zero(sparse.csr_matrix((k, self.h.getNumCol())))
             self.cap_row_of[sites] = first + np.arange(k)
             row.append(self.cap_row_of[sites])
             val.append(np.full(k, -float(self.cap)))
@@ -244,11 +254,11 @@ class _Model:
             (np.concatenate(val), (np.concatenate(row), np.concatenate(col))),
             shape=(self.h.getNumRow(), k),
         )
-        self.y_of[sites] = self._cols(np.zeros(k), np.ones(k), entries) + np.arange(k)
+        self.y_of[sites] = self._cols(np.zeros(k), entries) + np.arange(k)
 
     def add_columns(self, cands: I64) -> int:
-        """Columns for ``cands`` (not in the LP yet), their sites' y and cap rows,
-        and their link rows ``x_c - y_s <= 0``."""
+        """Columns for ``cands`` (not in the LP yet), and their sites' y and cap rows
+        (their links ``x_c - y_s <= 0`` join when broken: ``add_links``)."""
         cands = np.unique(cands[self.col_of[cands] < 0])
         if not len(cands):
             return 0
@@ -267,7 +277,7 @@ class _Model:
             (np.concatenate(val), (np.concatenate(row), np.concatenate(col))),
             shape=(self.h.getNumRow(), k),
         )
-        self.col_of[cands] = self._cols(self.cost[cands], np.ones(k), entries) + np.arange(k)
+        self.col_of[cands] = self._cols(self.cost[cands], entries) + np.arange(k)
         return k
 
     def add_links(self) -> int:
@@ -287,7 +297,7 @@ class _Model:
               np.stack([self.col_of[cands], self.y_of[self.site_of[cands]]], 1).ravel())),
             shape=(k, self.h.getNumCol()),
         )  # fmt: skip
-        self._rows(k, np.full(k, -highspy.kHighsInf), np.zeros(k), links)
+        self._le_zero(links)
         self.linked[cands] = True
         return k
 
@@ -333,7 +343,8 @@ def masts_sensors_lp(
     restricted LP's value is no upper bound to stop at while rows are missing). Yields
     None while HiGHS works."""
     n_sites = len(standing)
-    cap = inst.cap if inst.cap is not None else int(np.max(np.bincount(site_of), initial=1))
+    cap = _cap(inst, site_of)
+    at = min(masts, int(np.count_nonzero(~standing)))  # where the curve holds ``masts``
     lp = _Model(inst, cost, site_of, standing, masts)
     lp.add_points(np.asarray(points, dtype=np.int64))
     lp.add_columns(np.asarray(columns, dtype=np.int64))
@@ -349,10 +360,11 @@ def masts_sensors_lp(
         rounds += 1
         value = float(lp.h.getInfo().objective_function_value)
         pi, sigma, mu, beta = lp.duals()
-        curve = dual_curve(inst, cost, site_of, standing, pi, sigma)
-        if best is None or curve[min(masts, len(curve) - 1)] > best[min(masts, len(best) - 1)]:
+        excess, phi = site_excess(inst, cost, site_of, n_sites, pi)
+        curve = dual_curve(inst, phi, standing, pi, sigma)
+        if best is None or curve[at] > best[at]:
             best = curve
-        if best[min(masts, len(best) - 1)] >= enough:
+        if best[at] >= enough:
             break
         if stop is not None and stop.is_set():
             break
@@ -361,27 +373,23 @@ def masts_sensors_lp(
         # Columns: candidates at sites in the LP with a negative reduced cost; at
         # sites outside it, the best ``cap`` where their excess beats the budget's
         # dual (a standing mast's, any excess).
-        priced = np.asarray(inst.matrix @ pi, dtype=float)
-        reduced = cost - priced + beta[site_of]
+        reduced = beta[site_of] - excess  # cost - (A pi) + beta where that is negative
         open_site = lp.y_of >= 0
         joins = np.flatnonzero((reduced < -1e-9) & (lp.col_of < 0) & open_site[site_of])
         joins = joins[np.argsort(reduced[joins], kind="stable")[:PER_ROUND]]
-        excess = np.maximum(0.0, priced - cost)
-        phi = _site_excess(excess, site_of, n_sites, cap)
         gain = phi - np.where(standing, 0.0, mu)
         new_sites = np.flatnonzero((gain > 1e-9) & ~open_site)
         new_sites = new_sites[np.argsort(-gain[new_sites], kind="stable")][
             : max(1, PER_ROUND // cap)
         ]
         at_new = np.flatnonzero(np.isin(site_of, new_sites) & (excess > 0))
-        order = at_new[np.lexsort((-excess[at_new], site_of[at_new]))]
-        rank = np.arange(len(order)) - np.searchsorted(site_of[order], site_of[order])
+        at_new = at_new[_top_per_site(excess[at_new], site_of[at_new], cap)]
         # Rows: the points the LP's x leaves short of their k (no row yet).
         covered = np.asarray(lp.by_point @ lp.x(), dtype=float)
         short = np.flatnonzero((lp.row_of < 0) & (covered < inst.k - 1e-6))
         short = short[np.argsort(covered[short] - inst.k[short], kind="stable")]
         added = lp.add_points(short[:ROWS_PER_ROUND]) + lp.add_links()
-        added += lp.add_columns(np.concatenate([joins, order[rank < cap]]))
+        added += lp.add_columns(np.concatenate([joins, at_new]))
         if added == 0:
             complete = True
             break

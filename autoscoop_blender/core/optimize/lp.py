@@ -278,9 +278,7 @@ def masts_then_plan(
     MILP (else its LP only); ``known``: where the sites come from instead (a part's
     masts LP, ``PartInputs``)."""
     if known is None:
-        known = site_cover(
-            inst, cands.position, len(cands.positions), deadline, stop, milp, _standing(problem)
-        )
+        known = _fewest_masts(problem, cands, inst, deadline, stop, milp)
     sites = yield from known
     if not plan or (stop is not None and stop.is_set()):
         return sites, None
@@ -316,6 +314,20 @@ def masts_then_plan(
     if chosen:
         yield Incumbent(plan_value(problem, cands, chosen))
     return sites, chosen
+
+
+def _fewest_masts(
+    problem: Problem,
+    cands: CandidateSet,
+    inst: CoverInstance,
+    deadline: float | None,
+    stop: threading.Event | None,
+    milp: bool,
+) -> Generator[None, None, SiteSolution]:
+    """The fewest masts (``bound.site_cover``) over the candidates' positions."""
+    return site_cover(
+        inst, cands.position, len(cands.positions), deadline, stop, milp, _standing(problem)
+    )
 
 
 def milp_candidates(inst: CoverInstance, site_of: I64, used: I64, start: list[int]) -> I64:
@@ -392,10 +404,7 @@ def prove_bound(
     apart: PlanBound | None = None  # the bounds apart, once known beside the joint LP
     if part is None and n_parts == 1 and _joint_applies(problem, cands):
         joint = _JointStart(problem, cands, inst, best, deadline, stop)
-        known = joint.keep_sites(
-            site_cover(inst, cands.position, len(cands.positions), deadline, stop, milp,
-                       _standing(problem))
-        )  # fmt: skip
+        known = joint.keep_sites(_fewest_masts(problem, cands, inst, deadline, stop, milp))
         lp_gen = joint.then(lp_gen)
     masts = masts_then_plan(problem, cands, inst, deadline, stop, plan, milp, known)
     if joint is not None:
@@ -463,8 +472,7 @@ class _JointStart:
         self.best, self.deadline, self.stop = best, deadline, stop
         self.latest: LPProgress | None = None
         self.sites: SiteSolution | None = None
-        self.lp: LPSolution | None = None
-        self.lp_ended = False
+        self.lp: LPSolution | None = None  # once the LP has ended
         self.started = False
         self.solved: list[MastsSensors] = []
 
@@ -480,14 +488,13 @@ class _JointStart:
         joint LP, unless the other side has started it or it cannot start."""
         value = yield from gen
         if isinstance(value, LPSolution):
-            self.lp, self.lp_ended = value, True
+            self.lp = value
         elif isinstance(value, tuple) and value[1]:  # (sites, the plan on them)
             self.best = min(self.best, plan_value(self.problem, self.cands, value[1]))
         while not self.started and not (self.stop is not None and self.stop.is_set()):
             start = self._start()
             if start is None:
-                no_duals = self.lp is None or self.lp.pi is None
-                if self.lp_ended and self.latest is None and no_duals:
+                if self.lp is not None and self.lp.pi is None and self.latest is None:
                     break  # the LP ended before a round: no duals to start from
                 yield None
                 continue
