@@ -117,6 +117,14 @@ def build_part(
     return (yield from _build(problem, points, near))
 
 
+def build_on_sites(problem: Problem, sites: I64) -> Generator[int, None, CandidateSet]:
+    """The candidates at the positions ``sites`` (indices into the problem's, sorted)
+    over every target point (see ``build_candidates``; yields the same): the mast-aware
+    MILP's over a whole ground planned in parts (``parts.rejoin``)."""
+    every = np.arange(problem.n_targets, dtype=np.int64)
+    return (yield from _build(problem, every, np.asarray(sites, dtype=np.int64))).cands
+
+
 def _build(problem: Problem, points: I64, near: I64) -> Generator[int, None, PartCandidates]:
     """Candidates at the positions ``near`` (indices into the problem's) over the
     target points ``points`` (sorted ordinals; the matrix's columns, in order)."""

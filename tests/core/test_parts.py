@@ -21,7 +21,13 @@ from autoscoop_blender.core.geom.grid import GroundGrid
 from autoscoop_blender.core.model.scene import Area, SceneModel
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA, SensorPose
 from autoscoop_blender.core.optimize import parts as parts_module
-from autoscoop_blender.core.optimize.base import FixedSensor, Solution, StopReason, newly_covered
+from autoscoop_blender.core.optimize.base import (
+    FixedSensor,
+    Solution,
+    StopReason,
+    fix_candidate,
+    newly_covered,
+)
 from autoscoop_blender.core.optimize.bound import parts_of
 from autoscoop_blender.core.problem import Problem
 from autoscoop_blender.core.run import Run
@@ -248,8 +254,11 @@ def test_resuming_a_finished_run_prunes_again_to_the_same_plan(small_parts, monk
     if len(records) == len(first.sensors):  # no seam left one over: make one redundant
         real = parts_module.in_gain_order
 
+        calls = []
+
         def with_a_spare(inst, chosen):  # the first part's plan takes one more sensor
-            spare = [c for c in range(inst.matrix.shape[0]) if c not in chosen][:1]
+            calls.append(1)
+            spare = [c for c in range(inst.matrix.shape[0]) if c not in chosen][: len(calls) == 1]
             return real(inst, list(chosen) + spare)
 
         monkeypatch.setattr(parts_module, "in_gain_order", with_a_spare)
@@ -337,3 +346,79 @@ def test_the_masts_lps_lines_hold_at_other_goals(small_parts):
         value = drain(parts_module.cover_lp(*_site_lp_args(at, part, standing))).value
         for a, b in lines:
             assert a * goal - b <= value + 1e-6
+
+
+def _two_masts_one_can_carry():
+    """The road's problem, its whole-ground candidates, and two candidates ``a`` at
+    the mast position P = (60, 8) and ``b`` at Q = (64, 8) such that a and another
+    candidate at P cover at least what a and b do together, ``goal``, and no single
+    candidate at P or Q does: so on {P, Q} the cheapest plan is one mast with two
+    sensors (3 + 2 = 5), where a and b cost 3 + 3 + 2 = 8. Searched on the matrix,
+    without the code under test."""
+    problem = Problem(road(), box_caster(WALL)(), PAPER_CAMERA, settings())
+    cands = drain(build_candidates(problem))
+    sites = [problem.space.index_of(x, 8.0) for x in (60.0, 64.0)]
+    rows = {s: np.flatnonzero(cands.position == s) for s in sites}
+    dense = {s: cands.matrix[rows[s]].toarray() > 0 for s in sites}
+    single = max(int(d.sum(axis=1).max()) for d in dense.values())
+    at_p = dense[sites[0]]
+    partner = (at_p[:, None, :] | at_p[None, :, :]).sum(axis=2).max(axis=1)  # a and one at P
+    both = (at_p[:, None, :] | dense[sites[1]][None, :, :]).sum(axis=2)
+    fits = (both > single) & (both <= partner[:, None])
+    i, j = np.unravel_index(np.argmax(np.where(fits, both, -1)), both.shape)
+    assert fits[i, j]
+    return problem, cands, int(rows[sites[0]][i]), int(rows[sites[1]][j]), int(both[i, j])
+
+
+def test_rejoin_moves_a_sensor_to_the_other_mast_and_closes_one():
+    """A plan of two sensors on two masts, where one mast can carry both (above): the
+    re-plan over the whole ground ends at cost 5 (one mast, two sensors), and an
+    independent evaluator counts at least the goal covered."""
+    problem, cands, a, b, goal = _two_masts_one_can_carry()
+    problem.goal = goal
+    solution = Solution(np.zeros(problem.n_targets, bool), need=problem.need.copy())
+    for c in (a, b):
+        fix_candidate(problem, solution, cands, c)
+    assert solution.n_covered >= goal
+    before, after = drain(parts_module.rejoin(problem, solution, None, None))
+    assert (before, after) == (8.0, 5.0)
+    assert len(solution.sensors) == 2
+    assert len({(f.pose.x, f.pose.y) for f in solution.sensors}) == 1
+    caster = box_caster(WALL)()
+    ev = TargetedEvaluator(problem.grid, caster)
+    counts = np.zeros(problem.n_targets, dtype=np.int64)
+    for f in solution.sensors:
+        counts[ev.evaluate(PAPER_CAMERA, f.pose).covered] += 1
+    assert np.count_nonzero(counts) >= goal
+
+
+def test_rejoin_keeps_the_plan_when_the_fresh_count_falls_short(monkeypatch):
+    """The cheaper plan's sensors, evaluated afresh, short of the goal (made so here):
+    the plan stays as it was, sensor for sensor."""
+    problem, cands, a, b, goal = _two_masts_one_can_carry()
+    problem.goal = goal
+    solution = Solution(np.zeros(problem.n_targets, bool), need=problem.need.copy())
+    for c in (a, b):
+        fix_candidate(problem, solution, cands, c)
+    poses = [f.pose for f in solution.sensors]
+    reached = problem.reached
+    monkeypatch.setattr(problem, "reached", lambda n: n >= goal + 1)
+    assert drain(parts_module.rejoin(problem, solution, None, None)) == (8.0, 8.0)
+    assert [f.pose for f in solution.sensors] == poses and reached(solution.n_covered)
+
+
+def test_rejoin_keeps_a_standing_sensor_and_its_mast_free():
+    """A sensor that stood already (at P, free) and a planned one at Q: the planned
+    one moves to P's free mast (cost 8 - 3 = 5 before, 1 after: one sensor, no new
+    mast), and the standing one stays as it was."""
+    problem, cands, a, b, goal = _two_masts_one_can_carry()
+    problem.goal = goal
+    solution = Solution(np.zeros(problem.n_targets, bool), need=problem.need.copy())
+    fixed = fix_candidate(problem, solution, cands, a)
+    solution.sensors[0] = replace(fixed, existing=True)
+    problem.space.standing[cands.position[a]] = True
+    fix_candidate(problem, solution, cands, b)
+    before, after = drain(parts_module.rejoin(problem, solution, None, None))
+    assert (before, after) == (4.0, 1.0)
+    assert solution.sensors[0].existing and solution.sensors[0].pose == fixed.pose
+    assert {(f.pose.x, f.pose.y) for f in solution.sensors} == {(60.0, 8.0)}

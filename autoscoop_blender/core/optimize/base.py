@@ -293,13 +293,12 @@ def candidates_until(
         build.close()
 
 
-def taken_candidates(cands: CandidateSet, solution: Solution) -> NDArray[np.int64]:
-    """The candidates whose poses are sensors of ``solution`` already (a resumed run)."""
-    if not solution.sensors:
+def taken_candidates(cands: CandidateSet, sensors: list[FixedSensor]) -> NDArray[np.int64]:
+    """The candidates whose poses are ``sensors`` already (a resumed run's, those that
+    stand)."""
+    if not sensors:
         return np.zeros(0, dtype=np.int64)
-    fixed = {
-        (s.pose.x, s.pose.y, s.pose.pitch_deg, s.pose.yaw_deg, s.model) for s in solution.sensors
-    }
+    fixed = {(s.pose.x, s.pose.y, s.pose.pitch_deg, s.pose.yaw_deg, s.model) for s in sensors}
     xy = cands.positions[cands.position]
     taken = []
     for c, ((x, y), m, o) in enumerate(zip(xy, cands.model, cands.orientation)):

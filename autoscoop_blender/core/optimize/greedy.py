@@ -68,7 +68,7 @@ class Greedy:
         by_point = cands.matrix.tocsc()  # which candidates cover a point: for the updates
         gains = cands.matrix @ solution.short().astype(np.float32)
         # A candidate is a pose: fixed once at most (with k > 1 it may still gain).
-        taken = taken_candidates(cands, solution)
+        taken = taken_candidates(cands, solution.sensors)
         gains[taken] = -1.0
         gains[load[cands.position] >= cap] = -1.0
         price = sensor_price(problem, cands) if problem.settings.objective == "cost" else 1.0

@@ -713,7 +713,7 @@ def solve_whole(
         solution.stop_reason = StopReason.stopped_before_plan()
         return solution
     inst = instance(
-        cands, problem, solution.covered, solution.counts, taken_candidates(cands, solution)
+        cands, problem, solution.covered, solution.counts, taken_candidates(cands, solution.sensors)
     )
     if problem.reached(solution.n_covered) or inst.goal <= 0:
         solution.stop_reason = (

@@ -11,7 +11,11 @@ the longer extent, again and again), and each part is planned on its own:
    share of the coverage goal; the plan's sensors are fixed at once, so the run has
    a plan for the parts done (and a checkpoint of them) as soon as the first part is;
 3. after the last part, the sensors the seams made redundant (a sensor of one part
-   covering what the next part's covers too) are dropped while the goal stays met.
+   covering what the next part's covers too) are dropped while the goal stays met;
+4. then the plan is planned again over the whole ground on its own masts (``rejoin``:
+   the mast-aware MILP, every candidate at those positions over every point): a part
+   planned with the parts before fixed cannot move their sensors, so across a seam
+   two half-used masts may stand where one would do.
 
 **The bound stays a proof for the whole ground.** The parts' bounds cannot simply be
 added: a candidate near a border serves two parts and would be paid twice. So each
@@ -32,7 +36,7 @@ points cost the most, gives lines at the goals either side too, and each part's
 bound is the highest of its lines (still convex in its goal). The cost bound is
 mast_cost x masts + sensor_cost x sensors, each rounded up.
 
-A little over 500 lines: a part's build, bound, plan and the seams' repair run in one
+About 600 lines: a part's build, bound, plan and the seams' repair run in one
 loop that holds the run's deadline, stop and lines of the bound.
 """
 
@@ -52,7 +56,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import sparse
 
-from ..candidates import CandidateSet, PartCandidates, build_part
+from ..candidates import CandidateSet, PartCandidates, build_on_sites, build_part
 from ..problem import Problem
 from .base import (
     FixedSensor,
@@ -64,9 +68,24 @@ from .base import (
     newly_covered,
     taken_candidates,
 )
-from .bound import DualPolish, SiteSolution, combined_bound, cover_lp, parts_of, quiet
+from .bound import (
+    DualPolish,
+    SiteSolution,
+    combined_bound,
+    cover_lp,
+    parts_of,
+    quiet,
+    sensors_on_sites,
+)
 from .cover import Cover, CoverInstance, complete
-from .lp import PartInputs, in_gain_order, prove_and_plan
+from .lp import (
+    PartInputs,
+    in_gain_order,
+    mast_aware_costs,
+    milp_candidates,
+    plan_value,
+    prove_and_plan,
+)
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
@@ -307,11 +326,8 @@ def prune(problem: Problem, solution: Solution) -> int:
     at = [(s.pose.x, s.pose.y) for s in sensors]
     per_mast = {xy: at.count(xy) for xy in set(at)}
 
-    def seen(s: FixedSensor) -> I64:
-        return s.newly if s.seen is None else s.seen
-
     def held(i: int) -> int:  # points that would drop below their k without sensor i
-        ords = seen(sensors[i])
+        ords = _seen(sensors[i])
         return int(np.count_nonzero(counts[ords] == need[ords]))
 
     planned = [i for i, f in enumerate(sensors) if not f.existing]
@@ -320,20 +336,88 @@ def prune(problem: Problem, solution: Solution) -> int:
     for i in order:
         lost = held(i)
         if n_covered - lost >= problem.goal:
-            ords = seen(sensors[i])
+            ords = _seen(sensors[i])
             counts[ords] -= 1
             n_covered -= lost
             dropped.add(i)
     if not dropped:
         return 0
-    kept = [s for i, s in enumerate(sensors) if i not in dropped]
+    _fix_again(solution, [s for i, s in enumerate(sensors) if i not in dropped])
+    return len(dropped)
+
+
+def _seen(sensor: FixedSensor) -> I64:
+    """Every target ordinal ``sensor`` covers."""
+    return sensor.newly if sensor.seen is None else sensor.seen
+
+
+def _fix_again(solution: Solution, sensors: list[FixedSensor]) -> None:
+    """The solution emptied and ``sensors`` fixed in it again, in order (their
+    ``newly`` recounted; nothing evaluated afresh)."""
     solution.sensors = []
     solution.counts[:] = 0
     solution.covered[:] = False
     solution.n_covered = 0
-    for s in kept:
-        solution.fix(replace(s, newly=newly_covered(solution, seen(s))))
-    return len(dropped)
+    for s in sensors:
+        solution.fix(replace(s, newly=newly_covered(solution, _seen(s))))
+
+
+def rejoin(
+    problem: Problem, solution: Solution, deadline: float | None, stop: threading.Event | None
+) -> Generator[None, None, tuple[float, float]]:
+    """The plan re-planned over the whole ground on its own masts: the mast-aware MILP
+    (``sensors_on_sites``) on every candidate at the positions its planned sensors
+    stand at, each over every target point, from the plan itself. Each part was
+    planned with the parts before fixed, so across a seam a mast may carry what two
+    half-used ones do: the MILP moves sensors between the masts and closes those it
+    can, or moves them onto the masts that stood already, at no mast cost; the
+    sensors that stood already stay. The plan is replaced only
+    by a cheaper one that still meets the goal when its sensors are evaluated afresh.
+    Returns the plan's cost (the objective) before and after."""
+    planned = [f for f in solution.sensors if not f.existing]
+    standing = [f for f in solution.sensors if f.existing]
+    # Its masts, and those that stand already (a sensor moved there adds no mast).
+    sites = np.union1d(_mast_sites(problem, planned), np.flatnonzero(problem.space.standing))
+    cands = yield from quiet(build_on_sites(problem, sites))
+    need = problem.need
+    counts = np.zeros(problem.n_targets, dtype=np.int32)
+    for f in standing:
+        counts[_seen(f)] += 1
+    covered = counts >= need
+    every = np.arange(problem.n_targets, dtype=np.int64)
+    s = problem.settings
+    inst, ordinals = split_instance(
+        cands, every, covered, counts, need, problem.grid.target_xy,
+        s.max_sensors_per_mast, taken_candidates(cands, standing),
+    )  # fmt: skip
+    inst = replace(inst, goal=max(0, problem.goal - int(np.count_nonzero(covered))))
+    # The plan as candidates: at each sensor's mast the one that covers the most of
+    # what it does (its own pose, or one that covers all of that and more).
+    column = np.full(problem.n_targets, -1, dtype=np.int64)
+    column[ordinals] = np.arange(len(ordinals))
+    start = []
+    for f in planned:
+        at = np.flatnonzero(cands.position == problem.space.index_of(f.pose.x, f.pose.y))
+        mine = np.zeros(inst.n_points)
+        mine[column[_seen(f)][column[_seen(f)] >= 0]] = 1.0
+        start.append(int(at[np.argmax(inst.matrix[at] @ mine)]))
+    before = plan_value(problem, cands, start)
+    cols = milp_candidates(inst, cands.position, sites, start)
+    mc, sc = mast_aware_costs(problem, cands, len(cols))
+    chosen = yield from sensors_on_sites(
+        inst, cands.position, sites, start, mc, sc, deadline, stop, cols=cols
+    )
+    after = plan_value(problem, cands, chosen)
+    if after >= before:
+        return before, before
+    old = list(solution.sensors)
+    _fix_again(solution, standing)
+    for c in in_gain_order(inst, chosen):
+        fix_candidate(problem, solution, cands, c)
+    if not problem.reached(solution.n_covered):  # the fresh evaluation fell short
+        _fix_again(solution, old)
+        return before, before
+    return before, after
 
 
 class PartBuilder(Protocol):
@@ -476,7 +560,7 @@ def solve_in_parts(
                 cands.matrix.nnz, time.perf_counter() - started,
             )  # fmt: skip
             solving = time.perf_counter()
-            taken = taken_candidates(cands, solution)
+            taken = taken_candidates(cands, solution.sensors)
             # The part as the bound sees it (nothing fixed but what the run started
             # with) and as its plan does (what the parts before cover is covered).
             full, _ = split_instance(
@@ -546,6 +630,11 @@ def solve_in_parts(
     finally:
         builder.close()
     dropped = prune(problem, solution)
+    saved = (0.0, 0.0)
+    if n_parts > 1 and not late() and problem.reached(solution.n_covered):
+        last = max(n_parts - 1, 0)
+        saved = (yield from busy(rejoin(problem, solution, deadline, stop), last, "seams")) or saved
+        log.info("seams: the plan over the whole ground on its own masts: %g -> %g", *saved)
     solution.bound = bound_now()
     if problem.reached(solution.n_covered):
         solution.stop_reason = StopReason.reached(rho, early=stopped or late())
@@ -558,4 +647,8 @@ def solve_in_parts(
         solution.stop_reason = StopReason.out_of_sight("candidate pose")
     if dropped:
         solution.stop_reason += f" {dropped} sensor(s) the parts' seams made redundant dropped."
+    if saved[1] < saved[0]:
+        solution.stop_reason += (
+            f" Re-planned over the whole ground on its own masts: {saved[0]:g} -> {saved[1]:g}."
+        )
     return solution
