@@ -5,6 +5,7 @@ joined plan whose coverage an independent recount confirms; stop and resume."""
 from __future__ import annotations
 
 import math
+import threading
 import time
 from dataclasses import replace
 
@@ -422,3 +423,17 @@ def test_rejoin_keeps_a_standing_sensor_and_its_mast_free():
     assert (before, after) == (4.0, 1.0)
     assert solution.sensors[0].existing and solution.sensors[0].pose == fixed.pose
     assert {(f.pose.x, f.pose.y) for f in solution.sensors} == {(60.0, 8.0)}
+
+
+def test_rejoin_stopped_keeps_the_plan():
+    """Esc or Ctrl-C (the stop set) while the re-plan's MILP works: the plan stays."""
+    problem, cands, a, b, goal = _two_masts_one_can_carry()
+    problem.goal = goal
+    solution = Solution(np.zeros(problem.n_targets, bool), need=problem.need.copy())
+    for c in (a, b):
+        fix_candidate(problem, solution, cands, c)
+    poses = [f.pose for f in solution.sensors]
+    stop = threading.Event()
+    stop.set()
+    assert drain(parts_module.rejoin(problem, solution, None, stop)) == (8.0, 8.0)
+    assert [f.pose for f in solution.sensors] == poses

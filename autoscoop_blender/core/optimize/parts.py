@@ -371,11 +371,13 @@ def rejoin(
     planned with the parts before fixed, so across a seam a mast may carry what two
     half-used ones do: the MILP moves sensors between the masts and closes those it
     can, or moves them onto the masts that stood already, at no mast cost; the
-    sensors that stood already stay. The plan is replaced only
-    by a cheaper one that still meets the goal when its sensors are evaluated afresh.
-    Returns the plan's cost (the objective) before and after."""
+    sensors that stood already stay. The plan is replaced only by a cheaper one that
+    still meets the goal when its sensors are evaluated afresh. Returns the plan's
+    cost (the objective) before and after; (0, 0) when nothing was planned."""
     planned = [f for f in solution.sensors if not f.existing]
     standing = [f for f in solution.sensors if f.existing]
+    if not planned:
+        return 0.0, 0.0
     # Its masts, and those that stand already (a sensor moved there adds no mast).
     sites = np.union1d(_mast_sites(problem, planned), np.flatnonzero(problem.space.standing))
     cands = yield from quiet(build_on_sites(problem, sites))
@@ -398,6 +400,8 @@ def rejoin(
     start = []
     for f in planned:
         at = np.flatnonzero(cands.position == problem.space.index_of(f.pose.x, f.pose.y))
+        if len(at) == 0:  # it sees no target point: nothing to start from
+            return 0.0, 0.0
         mine = np.zeros(inst.n_points)
         mine[column[_seen(f)][column[_seen(f)] >= 0]] = 1.0
         start.append(int(at[np.argmax(inst.matrix[at] @ mine)]))
