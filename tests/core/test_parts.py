@@ -437,3 +437,30 @@ def test_rejoin_stopped_keeps_the_plan():
     stop.set()
     assert drain(parts_module.rejoin(problem, solution, None, stop)) == (8.0, 8.0)
     assert [f.pose for f in solution.sensors] == poses
+
+
+def test_the_parts_leave_the_replan_its_share_of_the_time(small_parts, monkeypatch):
+    """With a deadline 100 s away, every part's plan must end by 90 s (the re-plan
+    over the whole ground keeps ``REJOIN_SHARE``, 10 %), and the re-plan itself is
+    given the run's deadline."""
+    problem = Problem(road(), box_caster(WALL)(), PAPER_CAMERA, settings(rho=0.9))
+    solution = Solution(np.zeros(problem.n_targets, bool), need=problem.need.copy())
+    asked: dict[str, list[float]] = {"parts": [], "rejoin": []}
+    plan, replan = parts_module.prove_and_plan, parts_module.rejoin
+
+    def parts_plan(*args):
+        asked["parts"].append(args[4])
+        return plan(*args)
+
+    def rejoin(problem, solution, deadline, stop):
+        asked["rejoin"].append(deadline)
+        return replan(problem, solution, deadline, stop)
+
+    monkeypatch.setattr(parts_module, "prove_and_plan", parts_plan)
+    monkeypatch.setattr(parts_module, "rejoin", rejoin)
+    t0 = time.perf_counter()
+    deadline = t0 + 100.0
+    drain(parts_module.solve_in_parts(problem, solution, 3, deadline, threading.Event()))
+    assert len(asked["parts"]) == 3 and asked["rejoin"] == [deadline]
+    assert all(d <= t0 + 90.0 + 0.5 for d in asked["parts"])
+    assert problem.reached(solution.n_covered)

@@ -102,6 +102,9 @@ SITE_USED = 1e-3
 # Dual steps on a part's masts LP (``site_line``, ``either_side``): 20-35 ms each on the
 # parts of six tiles of full_ground and of Town04 (2026-11-26).
 SITE_POLISH_STEPS = 1000
+# The share of the time limit the parts leave to the re-plan over the whole ground
+# (``rejoin``): the parts of Town04 and of 12 tiles use all the time they are given.
+REJOIN_SHARE = 0.1
 
 
 def part_count(problem: Problem) -> int:
@@ -489,6 +492,8 @@ def solve_in_parts(
     carry = 0  # goal the parts so far fell short of: the next part's to meet
     reach_m = max(m.range_m for m in problem.models)
     stopped = False
+    # The parts end before the run does: what is left is the re-plan's (``rejoin``).
+    parts_end = None if deadline is None else deadline - REJOIN_SHARE * max(0.0, deadline - t0)
 
     def bound_now() -> PlanBound:
         return whole_bound(
@@ -583,8 +588,8 @@ def solve_in_parts(
                 # The rest of the time, shared by the parts left by their points.
                 share = open_points[k] / max(sum(open_points[k:]), 1)
                 part_deadline = None
-                if deadline is not None:
-                    part_deadline = time.perf_counter() + (deadline - time.perf_counter()) * share
+                if parts_end is not None:
+                    part_deadline = time.perf_counter() + (parts_end - time.perf_counter()) * share
                 # Its plans look for masts where its masts LP puts them and where the
                 # parts before stood theirs, which cost it nothing more.
                 used = _mast_sites(problem, solution.sensors[first:])
@@ -609,8 +614,8 @@ def solve_in_parts(
                 site_lp: SiteLP | None = masts_lp.get("lp")
                 if site_lp is not None:
                     # After the part's plan, which does not need them, and at most until
-                    # the run's deadline (on Town04 they took about 100 s of a part's 210).
-                    more = either_side(site_lp, reach[k], deadline, stop)
+                    # the parts' end (on Town04 they took about 100 s of a part's 210).
+                    more = either_side(site_lp, reach[k], parts_end, stop)
                     mast_lines[k] = [site_lp.line, *((yield from busy(more, k, "bounds")) or [])]
                     rounds += site_lp.rounds
                 rounds += lp.rounds
@@ -634,6 +639,7 @@ def solve_in_parts(
     finally:
         builder.close()
     dropped = prune(problem, solution)
+    early = stopped or late()
     saved = (0.0, 0.0)
     if n_parts > 1 and not late() and problem.reached(solution.n_covered):
         last = max(n_parts - 1, 0)
@@ -641,7 +647,7 @@ def solve_in_parts(
         log.info("seams: the plan over the whole ground on its own masts: %g -> %g", *saved)
     solution.bound = bound_now()
     if problem.reached(solution.n_covered):
-        solution.stop_reason = StopReason.reached(rho, early=stopped or late())
+        solution.stop_reason = StopReason.reached(rho, early=early)
     elif stopped:
         solution.stop_reason = (
             "Stopped early: the plan covers the parts planned by then "
