@@ -639,7 +639,8 @@ def solve_in_parts(
     finally:
         builder.close()
     dropped = prune(problem, solution)
-    early = stopped or late()
+    # Cut short: stopped, or the parts ran to their end (the time limit less the re-plan's).
+    early = stopped or late() or (parts_end is not None and time.perf_counter() > parts_end)
     saved = (0.0, 0.0)
     if n_parts > 1 and not late() and problem.reached(solution.n_covered):
         last = max(n_parts - 1, 0)
