@@ -105,7 +105,8 @@ METRICS: Fields = {
     "joint_lower_bound": (
         "number",
         "cost: no plan costs less, from masts and sensors together (the fewest sensors "
-        "any plan on m masts needs, for every m); null when not proven",
+        "any plan on m masts needs, for every m; planned in parts, the parts' bounds "
+        "on both at one split of the goal); null when not proven",
     ),
     "lp_bound": ("number", "the LP's bound on the sensors' cost before rounding up"),
     "lp_rounds": ("integer", "column generation rounds of the LP"),

@@ -27,6 +27,7 @@ from autoscoop_blender.core.optimize.bound import (
     LPProgress,
     MergedPoints,
     combined_bound,
+    combined_sum_bound,
     cover_lp,
     parts_of,
     sensors_on_sites,
@@ -144,6 +145,60 @@ def test_combined_bound_is_the_least_total_the_lp_finds(seed):
     lp = linprog(np.r_[np.zeros(n), np.ones(n)], A_ub=np.array(rows), b_ub=rhs, bounds=bounds)
     assert lp.status == 0
     assert combined_bound(lines, coverable, goal) == pytest.approx(lp.fun, abs=1e-7)
+
+
+def test_one_split_for_masts_and_sensors_beats_two():
+    """Goal 10 of two parts of 10 points each. Part 0: sensors 0.5 a point, masts 1;
+    part 1: sensors 1, masts 0.5. Apart, the sensors' split puts the goal in part 0
+    (5) and the masts' in part 1 (5): 3 x 5 + 5 = 20 at masts 3, sensors 1. One
+    split for both: a point costs 3.5 in part 0 and 2.5 in part 1, so all in part 1:
+    25."""
+    sensors, masts = [(0.5, 0.0), (1.0, 0.0)], [(1.0, 0.0), (0.5, 0.0)]
+    apart = 3 * combined_bound(masts, [10, 10], 10) + combined_bound(sensors, [10, 10], 10)
+    assert apart == pytest.approx(20.0)
+    assert combined_sum_bound([(3.0, masts), (1.0, sensors)], [10, 10], 10) == pytest.approx(25)
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_combined_sum_bound_is_the_least_total_the_lp_finds(seed):
+    """Random parts, two bounds of 1-3 lines each, weights in [0, 3]: the least
+    weighted total over one split of the goal, as an LP (each part's value of each
+    bound above its lines and 0) solved by HiGHS, is what ``combined_sum_bound``
+    gives, and never below the bounds split apart."""
+    rng = np.random.default_rng(100 + seed)
+    n = int(rng.integers(1, 5))
+
+    def some_lines():
+        return [
+            [(float(rng.uniform(0, 2)), float(rng.uniform(-1, 20)))
+             for _ in range(rng.integers(1, 4))]
+            for _ in range(n)
+        ]  # fmt: skip
+
+    bounds_lines = [some_lines(), some_lines()]
+    weights = [float(w) for w in rng.uniform(0, 3, 2)]
+    coverable = [int(rng.integers(1, 30)) for _ in range(n)]
+    goal = int(rng.integers(0, sum(coverable) + 1))
+    # Variables: each part's goal g_k, then each bound's value t_wk.
+    rows, rhs = [], []
+    for w, lines in enumerate(bounds_lines):
+        for k, mine in enumerate(lines):
+            for a, b in mine:  # a g_k - t_wk <= b
+                row = np.zeros(3 * n)
+                row[k], row[n + w * n + k] = a, -1.0
+                rows.append(row)
+                rhs.append(b)
+    rows.append(np.r_[-np.ones(n), np.zeros(2 * n)])  # sum g_k >= goal
+    rhs.append(-goal)
+    cost = np.r_[np.zeros(n), np.full(n, weights[0]), np.full(n, weights[1])]
+    box = [(0, c) for c in coverable] + [(0, None)] * (2 * n)
+    lp = linprog(cost, A_ub=np.array(rows), b_ub=rhs, bounds=box)
+    assert lp.status == 0
+    weighted = list(zip(weights, bounds_lines, strict=True))
+    got = combined_sum_bound(weighted, coverable, goal)
+    assert got == pytest.approx(lp.fun, abs=1e-7)
+    apart = sum(w * combined_bound(lines, coverable, goal) for w, lines in weighted)
+    assert got >= apart - 1e-9
 
 
 def test_the_mast_aware_milp_takes_a_candidate_once():

@@ -2,6 +2,7 @@
 above brute force, cover moves that keep the goal."""
 
 import itertools
+import time
 from dataclasses import replace
 
 import numpy as np
@@ -12,6 +13,7 @@ from scipy import sparse
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA
 from autoscoop_blender.core.optimize import lp as lp_module
 from autoscoop_blender.core.optimize.bound import (
+    LPProgress,
     best_scale,
     combined_bound,
     cover_lp,
@@ -685,3 +687,40 @@ def test_the_lp_line_bounds_the_lp_at_every_goal(seed):
             cover_lp(CoverInstance(inst.matrix, g), ones, group, np.arange(1), integral=False)
         )
         assert lp.slope * g - lp.intercept <= at_g.value + 1e-6
+
+
+def test_the_bound_shown_while_proving_is_a_proof_and_counts_the_masts(monkeypatch):
+    """Every bound a progress report shows is at most the run's final bound (each is a
+    proof when shown); while the sensors LP still works (held here, its last round
+    reported again for 2 s, so that the fewest masts are known first), the reports
+    count the fewest masts' cost too (mast_cost x masts), not the sensors' alone."""
+    real = lp_module.cover_lp
+    lp_done = []
+
+    def slow_lp(*args, **kwargs):
+        last = None
+        gen = real(*args, **kwargs)
+        while True:
+            try:
+                step = next(gen)
+            except StopIteration as done:
+                value = done.value
+                break
+            last = step if isinstance(step, LPProgress) else last
+            yield step
+        held = time.perf_counter() + 2.0
+        while last is not None and time.perf_counter() < held:
+            time.sleep(0.01)
+            yield last
+        lp_done.append(True)
+        return value
+
+    monkeypatch.setattr(lp_module, "cover_lp", slow_lp)
+    scene = areas_scene([shapely.box(0, -7, 100, 7)], [shapely.box(0, 10, 100, 14)])
+    run = Run(scene, box_caster(), PAPER_CAMERA, LP)
+    shown = [(bool(lp_done), p.bound) for p in run.steps() if p.bound is not None]
+    m = run.result().metrics
+    assert shown and all(b <= m["lower_bound"] + 1e-9 for _, b in shown)
+    masts = LP.mast_cost * m["masts_lower_bound"]
+    assert masts > 0
+    assert any(b >= masts for after, b in shown if not after)

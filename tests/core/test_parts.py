@@ -464,3 +464,23 @@ def test_the_parts_leave_the_replan_its_share_of_the_time(small_parts, monkeypat
     assert len(asked["parts"]) == 3 and asked["rejoin"] == [deadline]
     assert all(d <= t0 + 90.0 + 0.5 for d in asked["parts"])
     assert problem.reached(solution.n_covered)
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_cheapest_counts_is_the_least_cost_of_whole_counts(seed):
+    """A bound on the cost rises to the cheapest mast_cost x m + sensor_cost x s at
+    or above it with s, m at least their own bounds: brute force over a box of counts.
+    By hand: 10.5 with masts at 3, sensors at 2, one of each at least: 3 + 2 x 4,
+    9 + 2 x 1 and 6 + 2 x 3 give 11, 6 + 2 x 2 = 10 is short."""
+    assert parts_module.cheapest_counts(10.5, 1, 1, 2.0, 3.0) == 11.0
+    rng = np.random.default_rng(seed)
+    mast_cost, sensor_cost = (float(c) for c in rng.integers(1, 6, 2))
+    sensors, masts = (int(c) for c in rng.integers(0, 8, 2))
+    total = float(rng.uniform(0, 60))
+    brute = min(
+        mast_cost * m + sensor_cost * s
+        for m in range(masts, 80)
+        for s in range(sensors, 80)
+        if mast_cost * m + sensor_cost * s >= total
+    )
+    assert parts_module.cheapest_counts(total, sensors, masts, sensor_cost, mast_cost) == brute

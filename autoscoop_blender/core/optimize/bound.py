@@ -672,11 +672,10 @@ def parts_of(xy: F64, n_parts: int) -> I64:
     return part
 
 
-def combined_bound(
-    lines: Sequence[tuple[float, float] | list[tuple[float, float]]],
-    coverable: list[int],
-    goal: int,
-) -> float:
+PartLines = Sequence[tuple[float, float] | list[tuple[float, float]]]
+
+
+def combined_bound(lines: PartLines, coverable: list[int], goal: int) -> float:
     """The least total of the parts' LP values over every way to split ``goal`` among
     them, each part's value bounded below by its line (slope, intercept), or by the
     highest of its lines, and by 0; its share of the goal at most what it can cover
@@ -684,10 +683,26 @@ def combined_bound(
     linear in its goal, 0 up to where its first line rises: the goal goes to the
     parts' pieces with the smallest slopes first (``_pieces``). 0 when the parts cover
     the goal at no cost."""
+    return combined_sum_bound([(1.0, lines)], coverable, goal)
+
+
+def combined_sum_bound(
+    weighted: Sequence[tuple[float, PartLines]], coverable: list[int], goal: int
+) -> float:
+    """``combined_bound`` of a weighted sum of bounds, each given by the parts' lines
+    (weighted: (weight >= 0, the parts' lines) per bound): the least over every split
+    of ``goal`` of the sum over the parts of sum_w weight_w f_w,p(goal_p). The split
+    is one for every bound, since a plan covers what it covers in a part whichever
+    bound counts it; so this is at least the weighted sum of the bounds split apart
+    (e.g. mast_cost x the masts' + sensor_cost x the sensors')."""
     pieces, total = [], 0.0
-    for part_lines, c in zip(lines, coverable, strict=True):
-        many = part_lines if isinstance(part_lines, list) else [part_lines]
-        at_zero, more = _pieces(many, c)
+    for p, c in enumerate(coverable):
+        terms = []
+        for weight, lines in weighted:
+            mine = lines[p]
+            many = mine if isinstance(mine, list) else [mine]
+            terms.append((weight, [(a, b) for a, b in many if a > 0 or b < 0] or [(0.0, 0.0)]))
+        at_zero, more = _pieces(terms, c)
         total += at_zero
         pieces.extend(more)
     left = float(goal)
@@ -701,23 +716,23 @@ def combined_bound(
 
 
 def _pieces(
-    lines: list[tuple[float, float]], coverable: float
+    terms: list[tuple[float, list[tuple[float, float]]]], coverable: float
 ) -> tuple[float, list[tuple[float, float]]]:
-    """f(g) = max(0, slope g - intercept over ``lines``) for g from 0 to ``coverable``:
-    f(0), and the (slope, length) of its pieces in order (their slopes rise: f is
-    convex)."""
-    lines = [(a, b) for a, b in lines if a > 0 or b < 0] or [(0.0, 0.0)]
+    """f(g) = sum over ``terms`` (weight, lines) of weight x max(0, slope g - intercept
+    over its lines) for g from 0 to ``coverable``: f(0), and the (slope, length) of
+    its pieces in order (their slopes rise: f is convex, a sum of convex terms)."""
     at = {0.0, float(coverable)}
-    for a, b in lines:
-        if a != 0:
-            at.add(b / a)  # where the line crosses 0
-    for (a1, b1), (a2, b2) in itertools.combinations(lines, 2):
-        if a1 != a2:
-            at.add((b1 - b2) / (a1 - a2))  # where two lines cross
+    for _, lines in terms:
+        for a, b in lines:
+            if a != 0:
+                at.add(b / a)  # where the line crosses 0
+        for (a1, b1), (a2, b2) in itertools.combinations(lines, 2):
+            if a1 != a2:
+                at.add((b1 - b2) / (a1 - a2))  # where two lines cross
     points = sorted(g for g in at if 0.0 <= g <= coverable)
 
     def value(g: float) -> float:
-        return max(0.0, max(a * g - b for a, b in lines))
+        return sum(w * max(0.0, max(a * g - b for a, b in lines)) for w, lines in terms)
 
     pieces = [
         ((value(hi) - value(lo)) / (hi - lo), hi - lo)

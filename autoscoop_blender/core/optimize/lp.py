@@ -421,6 +421,11 @@ def prove_bound(
                 joint.latest = step
             if per_sensor is not None:
                 so_far = per_sensor * step.bound
+            if joint is not None and joint.sites is not None:
+                # The fewest masts are known (the joint LP is for the cost): their
+                # cost too, so the gap shown is the plan's, not the sensors' alone.
+                sensors = unit * math.ceil(step.bound - 1e-6)
+                so_far = s.mast_cost * joint.sites.bound + sensors
         if isinstance(step, Incumbent):  # a plan on the fewest masts, known at once
             best = min(best, step.value)
             if joint is not None:

@@ -34,7 +34,11 @@ point). A tangent at the part's goal sags below the LP away from it, and the bes
 split moves goal to where the tangents are flattest; so the masts LP, whose last
 points cost the most, gives lines at the goals either side too, and each part's
 bound is the highest of its lines (still convex in its goal). The cost bound is
-mast_cost x masts + sensor_cost x sensors, each rounded up.
+mast_cost x masts + sensor_cost x sensors, each rounded up; or, higher where the
+masts' best split of the goal is not the sensors', the least over one split for
+both of the parts' mast_cost x masts + sensor_cost x sensors lines (a plan covers
+what it covers in a part whichever it is counted by: ``bound.combined_sum_bound``),
+raised to the next cost that whole counts make (``cheapest_counts``).
 
 About 600 lines: a part's build, bound, plan and the seams' repair run in one
 loop that holds the run's deadline, stop and lines of the bound.
@@ -72,6 +76,7 @@ from .bound import (
     DualPolish,
     SiteSolution,
     combined_bound,
+    combined_sum_bound,
     cover_lp,
     parts_of,
     quiet,
@@ -295,23 +300,49 @@ def whole_bound(
     candidate at its model's cost); None when all cost the same."""
     lp = combined_bound(sensor_lines, coverable, goal)
     masts_lp = combined_bound(mast_lines, coverable, goal)
+    unit = float(problem.sensor_costs[0]) if dearest is None else 1.0
     if dearest is None:
         sensors = max(0, math.ceil(lp - 1e-6))
-        sensor_cost = float(problem.sensor_costs[0]) * sensors
+        sensor_cost = unit * sensors
     else:
         sensors = max(0, math.ceil(lp / dearest - 1e-6)) if dearest > 0 else 0
         sensor_cost = lp
     standing = int(np.count_nonzero(problem.space.standing))
-    cap = problem.settings.max_sensors_per_mast
-    masts = max(max(0, math.ceil(masts_lp - 1e-6)), math.ceil((sensors - cap * standing) / cap))
+    s = problem.settings
+    cap = s.max_sensors_per_mast
+    masts = max(0, math.ceil(masts_lp - 1e-6), math.ceil((sensors - cap * standing) / cap))
+    # The cost with one split of the goal for masts and sensors both (a plan's own).
+    together = combined_sum_bound(
+        [(s.mast_cost, mast_lines), (unit, sensor_lines)], coverable, goal
+    )
+    if dearest is None:
+        together = cheapest_counts(together, sensors, masts, unit, s.mast_cost)
     return PlanBound(
         sensors=sensors,
-        masts=max(masts, 0),
+        masts=masts,
         lp=lp,
         scope=f"plans on the candidate set, proven part by part ({len(coverable)} parts)",
         rounds=rounds,
         sensor_cost_lp=sensor_cost,
+        joint=together,
     )
+
+
+def cheapest_counts(
+    total: float, sensors: int, masts: int, sensor_cost: float, mast_cost: float
+) -> float:
+    """The least ``mast_cost`` x m + ``sensor_cost`` x s over whole numbers s >=
+    ``sensors`` and m >= ``masts`` that is at least ``total`` (less round-off): a
+    plan's cost is such a sum, so a bound ``total`` on it rises to the next one."""
+    if sensor_cost <= 0 or mast_cost <= 0:
+        return max(total, mast_cost * masts + sensor_cost * sensors)
+    best, m = math.inf, masts
+    while True:
+        n = max(sensors, math.ceil((total - mast_cost * m) / sensor_cost - 1e-6))
+        best = min(best, mast_cost * m + sensor_cost * n)
+        if n == sensors:
+            return best
+        m += 1
 
 
 def prune(problem: Problem, solution: Solution) -> int:
