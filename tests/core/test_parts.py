@@ -393,6 +393,35 @@ def test_rejoin_moves_a_sensor_to_the_other_mast_and_closes_one():
     assert np.count_nonzero(counts) >= goal
 
 
+def test_rejoin_by_windows_keeps_the_sensors_outside_each(monkeypatch):
+    """The two masts of ``_two_masts_one_can_carry`` and a third sensor on a mast at
+    R = (200, 8), seeing none of their points; at most 2 masts a window, so {P, Q}
+    and {R}: the first window's re-plan puts two sensors on one mast with R's sensor
+    counted as it stands, the second cannot do better than one mast and one sensor.
+    Cost 3 x 3 + 3 = 12 before, 3 x 2 + 3 = 9 after; R's sensor keeps its pose; an
+    independent evaluator counts the goal covered."""
+    problem, cands, a, b, goal = _two_masts_one_can_carry()
+    far = np.flatnonzero(cands.position == problem.space.index_of(200.0, 8.0))
+    r = int(far[np.argmax(np.diff(cands.matrix.indptr)[far])])
+    near = cands.matrix[[a, b]].indices
+    assert not np.isin(cands.matrix[r].indices, near).any()
+    solution = Solution(np.zeros(problem.n_targets, bool), need=problem.need.copy())
+    for c in (a, b, r):
+        fix_candidate(problem, solution, cands, c)
+    problem.goal = solution.n_covered
+    at_r = solution.sensors[2].pose
+    monkeypatch.setattr(parts_module, "REJOIN_MASTS", 2)
+    before, after = drain(parts_module.rejoin_windows(problem, solution, None, None))
+    assert (before, after) == (12.0, 9.0)
+    assert at_r in [f.pose for f in solution.sensors] and len(solution.sensors) == 3
+    assert len({(f.pose.x, f.pose.y) for f in solution.sensors}) == 2
+    ev = TargetedEvaluator(problem.grid, box_caster(WALL)())
+    counts = np.zeros(problem.n_targets, dtype=np.int64)
+    for f in solution.sensors:
+        counts[ev.evaluate(PAPER_CAMERA, f.pose).covered] += 1
+    assert np.count_nonzero(counts) >= problem.goal
+
+
 def test_rejoin_keeps_the_plan_when_the_fresh_count_falls_short(monkeypatch):
     """The cheaper plan's sensors, evaluated afresh, short of the goal (made so here):
     the plan stays as it was, sensor for sensor."""
