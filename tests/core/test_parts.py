@@ -393,14 +393,11 @@ def test_rejoin_moves_a_sensor_to_the_other_mast_and_closes_one():
     assert np.count_nonzero(counts) >= goal
 
 
-def test_rejoin_by_windows_keeps_the_sensors_outside_each(monkeypatch):
-    """The two masts of ``_two_masts_one_can_carry`` and a third sensor on a mast at
-    R = (200, 8), seeing none of their points; at most 2 masts a window, so {P, Q}
-    and {R}: the first window's re-plan puts two sensors on one mast with R's sensor
-    counted as it stands, the second cannot do better than one mast and one sensor.
-    Cost 3 x 3 + 3 = 12 before, 3 x 2 + 3 = 9 after; R's sensor keeps its pose; an
-    independent evaluator counts the goal covered."""
-    problem, cands, a, b, goal = _two_masts_one_can_carry()
+def _three_masts():
+    """``_two_masts_one_can_carry``'s a at P and b at Q fixed, and the candidate at
+    R = (200, 8) that covers the most, which sees none of their points; the goal is
+    what the three cover."""
+    problem, cands, a, b, _ = _two_masts_one_can_carry()
     far = np.flatnonzero(cands.position == problem.space.index_of(200.0, 8.0))
     r = int(far[np.argmax(np.diff(cands.matrix.indptr)[far])])
     near = cands.matrix[[a, b]].indices
@@ -409,6 +406,30 @@ def test_rejoin_by_windows_keeps_the_sensors_outside_each(monkeypatch):
     for c in (a, b, r):
         fix_candidate(problem, solution, cands, c)
     problem.goal = solution.n_covered
+    return problem, cands, solution
+
+
+def test_plan_cost_of_counts_as_each_objective():
+    """Three sensors on three masts: cost 3 x 3 + 3 = 12; with a mast standing at P
+    already, 2 new masts: 9; 3 sensors; 2 masts (and the sensors as a tie-break)."""
+    problem, _, solution = _three_masts()
+    assert parts_module.plan_cost_of(problem, solution.sensors) == 12.0
+    problem.space.standing[problem.space.index_of(60.0, 8.0)] = True
+    assert parts_module.plan_cost_of(problem, solution.sensors) == 9.0
+    problem.settings = replace(problem.settings, objective="sensors")
+    assert parts_module.plan_cost_of(problem, solution.sensors) == 3.0
+    problem.settings = replace(problem.settings, objective="masts")
+    assert parts_module.plan_cost_of(problem, solution.sensors) == pytest.approx(2.0, abs=1e-5)
+
+
+def test_rejoin_by_windows_keeps_the_sensors_outside_each(monkeypatch):
+    """The two masts of ``_two_masts_one_can_carry`` and a third sensor on a mast at
+    R = (200, 8), seeing none of their points; at most 2 masts a window, so {P, Q}
+    and {R}: the first window's re-plan puts two sensors on one mast with R's sensor
+    counted as it stands, the second cannot do better than one mast and one sensor.
+    Cost 3 x 3 + 3 = 12 before, 3 x 2 + 3 = 9 after; R's sensor keeps its pose; an
+    independent evaluator counts the goal covered."""
+    problem, cands, solution = _three_masts()
     at_r = solution.sensors[2].pose
     monkeypatch.setattr(parts_module, "REJOIN_MASTS", 2)
     before, after = drain(parts_module.rejoin_windows(problem, solution, None, None))

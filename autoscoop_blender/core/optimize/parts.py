@@ -430,12 +430,18 @@ def rejoin_windows(
 
 
 def plan_cost_of(problem: Problem, sensors: list[FixedSensor]) -> float:
-    """What ``sensors`` cost: ``mast_cost`` a new mast (a position a planned sensor
-    stands at, where none stood) and each planned sensor its model's cost; those that
-    stood already cost nothing."""
+    """The objective of ``sensors`` as ``lp.plan_value`` counts it: for the cost,
+    ``mast_cost`` a new mast (a position a planned sensor stands at, where none
+    stood) and each planned sensor its model's cost; those that stood already cost
+    nothing."""
     planned = [f for f in sensors if not f.existing]
     sites = _mast_sites(problem, planned)
     masts = int(np.count_nonzero(~problem.space.standing[sites]))
+    objective = problem.settings.objective
+    if objective == "sensors":
+        return float(len(planned))
+    if objective == "masts":
+        return masts + len(planned) * 1e-6
     price = sum(float(problem.sensor_costs[f.model]) for f in planned)
     return problem.settings.mast_cost * masts + price
 
