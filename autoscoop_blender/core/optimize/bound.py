@@ -416,7 +416,6 @@ class DualPolish:
         return self._steps(pi.copy(), sigma, target, steps)
 
     def _steps(self, pi: F64, sigma: float, target: float, steps: int | None) -> Iterator[None]:
-        n = len(pi)
         for _ in range(self.MAX_STEPS if steps is None else steps):
             now, priced = self.value(pi, sigma)
             if self.steps < self.MIN_STEPS and now > self.steady_value + 1e-9:
