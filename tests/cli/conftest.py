@@ -1,6 +1,7 @@
 """Helpers to run ``python -m headless`` as a user would, and to make bad scenes."""
 
 import json
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -12,6 +13,14 @@ from tests.blender import builders as b
 from tests.conftest import ROOT
 
 SAMPLES = ROOT / "sample_blends"
+
+# The commands run here stand for a user at a terminal, where Ctrl-C reaches them. A
+# test run started as a shell's background job (``./dev.sh test &``, ``nohup``)
+# ignores SIGINT, every command it starts would inherit that, and the command line
+# rightly leaves an ignored SIGINT ignored (``headless.interrupts``): the interrupt
+# tests would fail for the shell's sake. A handled SIGINT is the default in a child.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def run_headless(*args, script=False):
