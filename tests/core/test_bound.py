@@ -650,6 +650,36 @@ def test_an_lp_stopped_in_its_first_solve_keeps_its_start(monkeypatch):
     assert len(sol.priced) == 0 and np.isinf(sol.reduced).all() and len(sol.reduced) == 4
 
 
+def test_an_lp_whose_solve_ends_as_the_stop_comes_takes_no_more_dual_steps(monkeypatch):
+    """The second solve ends and the stop comes at that moment (no step beside either
+    solve): the LP returns that round's solution without the steps that would top the
+    first round's walk up to ``MIN_STEPS`` (seconds on a large ground, of a stopped
+    run's 5), where unstopped it takes them."""
+    real_run = bound._run
+    stop = threading.Event()
+    solves = itertools.count(1)
+    taken = []
+    real_value = bound.DualPolish.value
+
+    def value(self, pi, sigma):
+        taken.append(stop.is_set())
+        return real_value(self, pi, sigma)
+
+    def run(h, given=None, beside=None):
+        solved = yield from real_run(h, None, None)
+        if given is stop and next(solves) == 2:
+            stop.set()
+        return solved
+
+    monkeypatch.setattr(bound, "_run", run)
+    monkeypatch.setattr(bound.DualPolish, "value", value)
+    sol, reports = _part0(stop=stop, integral=False)
+    assert sol.rounds == 2 and len(reports) == 2 and not sol.complete
+    assert taken == []  # no step at all: the stop came before the first top-up
+    _part0(stop=threading.Event(), integral=False)  # the same LP, never stopped
+    assert len(taken) >= bound.DualPolish.MIN_STEPS
+
+
 # Three sites around three points, each seeing two: the LP opens each by half (1.5),
 # the MILP two.
 TRIANGLE = instance([[0, 1], [1, 2], [0, 2]], 3, 3)
