@@ -187,11 +187,20 @@ def plan_cost(
     masts = len(used) if standing is None else int(np.count_nonzero(~standing[used]))
     if cap is not None and len(per) and int(per.max()) > cap:
         return math.inf, masts
+    price = float(cost_at(sc, np.asarray(chosen, dtype=np.int64)).sum())
+    return objective_value(objective, masts, len(chosen), mc, price), masts
+
+
+def objective_value(
+    objective: str, masts: int, sensors: int, mast_cost: float, sensors_price: float
+) -> float:
+    """A plan's objective from its counts: new ``masts``, ``sensors`` planned, and
+    what those sensors cost in all (``sensors_price``)."""
     if objective == "sensors":
-        return float(len(chosen)), masts
+        return float(sensors)
     if objective == "masts":
-        return masts + len(chosen) * 1e-6, masts  # the fewest sensors break ties
-    return mc * masts + float(cost_at(sc, np.asarray(chosen, dtype=np.int64)).sum()), masts
+        return masts + sensors * 1e-6  # the fewest sensors break ties
+    return mast_cost * masts + sensors_price
 
 
 def _both(
