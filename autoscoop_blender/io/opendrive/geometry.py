@@ -114,7 +114,8 @@ def _spiral(k0: float, k1: float, length: float, ds: F64) -> tuple[F64, F64, F64
     """Clothoid from the origin, heading 0: (x, y, heading) at ds."""
     dk = (k1 - k0) / length if length > 0 else 0.0
     head = k0 * ds + 0.5 * dk * ds * ds
-    if abs(dk) * max(length, 1.0) ** 3 < 1e-12:  # no measurable change: an arc
+    m = max(length, 1.0)  # (a product, not m ** 3: a hostile length overflows that)
+    if dk == 0.0 or abs(dk) * m * m * m < 1e-12:  # no measurable change: an arc
         if abs(k0) < 1e-15:
             return ds.copy(), np.zeros_like(ds), head
         return np.sin(k0 * ds) / k0, (1.0 - np.cos(k0 * ds)) / k0, head
