@@ -6,7 +6,8 @@ is built once; the optimizer chosen by the settings (``optimize/``) places senso
 it and returns a ``Solution``; sensors within ``mast_join_m`` are grouped into masts
 (``masts.py``); ``result.finish_layout`` evaluates the final layout in full and hands
 back a ``Result`` in world metres, with draped footprints and metrics, that holds no
-caster or grid.
+caster or grid. The sensors fixed so far are evaluated for that report while the
+search runs (``ahead.py``), so that a run stopped early writes its plan in seconds.
 
 The Blender operator time-slices the generator and the CLI draws a progress bar from
 it; both drain the same generator, so the same seed gives the same answer everywhere.
@@ -23,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from .ahead import ReportAhead
 from .errors import InputError
 from .geom.raycast import RayCaster
 from .masts import choose_sites, group_positions
@@ -88,6 +90,7 @@ class Run:
             self._replay(record)
         self.part_builder = part_builder
         self.optimizer = self._optimizer(make_caster, workers)
+        self.ahead = ReportAhead(self.problem)
         self._result: Result | None = None
 
     def _optimizer(self, make_caster: CasterFactory, workers: int) -> Optimizer:
@@ -122,6 +125,7 @@ class Run:
                 if progress.fixed is not None and self.on_fixed is not None:
                     self.on_fixed(self._record(progress.fixed))
                 yield progress
+                self.ahead.warm(self.solution.sensors, time.perf_counter() - self.t0)
         finally:
             solve.close()
             self.close()
@@ -236,6 +240,8 @@ class Run:
         def cover(i: int, x: float, y: float) -> np.ndarray:
             s = sensors[i]
             pose = p.pose(x, y, s.pose.pitch_deg, s.pose.yaw_deg, s.model)
+            if pose == s.pose and s.seen is not None:  # as evaluated when it was fixed
+                return s.seen
             return p.evaluate(pose, model=s.model).covered
 
         keep = min(self.solution.n_covered, p.goal)
@@ -253,7 +259,8 @@ class Run:
     def _finish(self, poses: list[SensorPose], mast_of: list[int]) -> Result:
         """The final full evaluation of every sensor, and the result."""
         p, s = self.problem, self.solution
-        coverages = [p.evaluate_full(pose, f.model) for pose, f in zip(poses, s.sensors)]
+        done = [self.ahead.get(pose, f.model) for pose, f in zip(poses, s.sensors)]
+        coverages = [cov for cov, _ in done]
         how = Provenance(
             t0=self.t0,
             fitness=[f.fitness for f in s.sensors],
@@ -271,5 +278,6 @@ class Run:
             standing=p.space.positions[p.space.standing],
         )
         return finish_layout(
-            p.scene, p.grid, coverages, mast_of, how, p.probe.extra_rays, need=p.need
-        )
+            p.scene, p.grid, coverages, mast_of, how, p.probe.extra_rays, need=p.need,
+            pieces=[pieces for _, pieces in done],
+        )  # fmt: skip
