@@ -209,7 +209,7 @@ def finish_layout(
     how: Provenance,
     extra_rays: int = 0,
     need: NDArray[np.int32] | None = None,
-    pieces: Sequence[SensorPieces | None] = (),
+    pieces: Sequence[SensorPieces] = (),
 ) -> Result:
     """The ``Result`` of evaluated sensors (see the module docstring).
 
@@ -220,7 +220,7 @@ def finish_layout(
     evaluations and drops (reachability probes, candidate sets); need: (N,) sensors
     each target point needs (default: ``point_need`` of the grid and the settings'
     ``coverage_k``); pieces: per sensor, its ``sensor_pieces`` when the caller has
-    them already (missing or None: made here).
+    them already (empty: made here).
     """
     if need is None:
         need = point_need(grid, int(getattr(how.settings, "coverage_k", 1) or 1))
@@ -229,8 +229,7 @@ def finish_layout(
     sensors = []
     for k, cov in enumerate(coverages):
         p = cov.pose
-        made = pieces[k] if k < len(pieces) else None
-        made = made or sensor_pieces(scene, grid, cov)
+        made = pieces[k] if pieces else sensor_pieces(scene, grid, cov)
         sensors.append(
             SensorRecord(
                 n=k + 1,
