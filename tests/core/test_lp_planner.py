@@ -755,6 +755,51 @@ def test_the_plan_on_the_lps_sites_wins_when_it_is_cheaper(monkeypatch):
     assert len(calls["close_sites"]) == 3
 
 
+def test_a_parts_plan_is_the_best_milp_over_every_start(monkeypatch):
+    """TRIANGLE, sensors: on the fewest masts' sites 0, 1 greedy needs 3 sensors, on
+    the LP's 0, 1, 2 it takes 4 and one of 1, 2 (2 sensors, on site 2 and 0 or 1): that
+    start is the cheaper, its MILP first. The MILP is faked to keep a start on site 2
+    and to return candidate 0 alone (1) on sites 0, 1. With ``every_start`` (a part's
+    plans) both MILPs run and the plan is the cheaper MILP's, though its start was the
+    dearer; without, only the cheaper start's; past the deadline, only the first."""
+    problem = HandLP(TRIANGLE, 3, TRIANGLE_SITES, objective="sensors")
+    inst = lp_module.instance(problem.candidates, problem, np.zeros(3, bool))
+    _fake_sites(monkeypatch, [0, 1], [0, 1, 2])
+    milps = []
+
+    def sensors_on_sites(inst, site_of, sites, start, *args, **kwargs):
+        milps.append(sorted(int(s) for s in sites))
+        return list(start) if 2 in sites else [0]
+        yield  # a generator, like the real one
+
+    monkeypatch.setattr(lp_module, "sensors_on_sites", sensors_on_sites)
+
+    def run(every_start, deadline=None):
+        milps.clear()
+        go = lp_module.masts_then_plan(
+            problem, problem.candidates, inst, deadline, None, True, every_start=every_start
+        )
+        (_, plan), yielded = steps(go)
+        found = [y.value for y in yielded if isinstance(y, lp_module.Incumbent)]
+        return plan, found
+
+    plan, found = run(True)
+    assert len(milps) == 2 and 2 in milps[0] and len(milps[0]) == 2 and milps[1] == [0, 1]
+    assert plan == [0] and found == [2.0, 2.0, 1.0]
+    plan, found = run(False)
+    assert len(milps) == 1 and 2 in milps[0] and len(plan) == 2 and 4 in plan
+    assert found == [2.0, 2.0]
+    plan, found = run(True, deadline=time.perf_counter() - 1.0)
+    assert len(milps) == 1 and len(plan) == 2 and 4 in plan
+
+
+def test_site_sets_are_distinct_and_the_best_found_first():
+    sites = SiteSolution(2, np.array([0, 1]), np.array([0, 1, 2]), (np.array([0, 1]), np.zeros(0)))
+    assert [s.tolist() for s in sites.site_sets()] == [[0, 1], [0, 1, 2]]
+    lp_only = SiteSolution(0, np.zeros(0, np.int64), np.array([3]))
+    assert [s.tolist() for s in lp_only.site_sets()] == [[3]]
+
+
 def test_the_plan_on_the_sites_is_built_per_cost(monkeypatch):
     """Cost objective, masts at 3, models at 1 and 2 (candidate 4 of model 1): the
     greedy start, its improvement and the masts closed all get the per-site mast

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 import shapely
 from numpy.typing import NDArray
+from scipy import sparse
 
 from autoscoop_blender.core import budget
 from autoscoop_blender.core.candidates import build_candidates, build_part
@@ -29,7 +30,8 @@ from autoscoop_blender.core.optimize.base import (
     fix_candidate,
     newly_covered,
 )
-from autoscoop_blender.core.optimize.bound import parts_of
+from autoscoop_blender.core.optimize.bound import SiteSolution, parts_of
+from autoscoop_blender.core.optimize.cover import CoverInstance
 from autoscoop_blender.core.problem import Problem
 from autoscoop_blender.core.run import Run
 from autoscoop_blender.core.settings import OptimizeSettings
@@ -315,10 +317,6 @@ def test_a_masts_lp_cut_short_still_proves_most_of_its_value(small_parts, monkey
 
 def _site_lp_args(inst, part, standing):
     """The masts LP of ``site_line``, solved to its end (the simplex)."""
-    from scipy import sparse
-
-    from autoscoop_blender.core.optimize.cover import CoverInstance
-
     col = np.searchsorted(part.sites, part.cands.position)
     pick = sparse.csr_matrix(
         (np.ones(len(col)), (col, np.arange(len(col)))), shape=(len(part.sites), len(col))
@@ -369,6 +367,59 @@ def _two_masts_one_can_carry():
     i, j = np.unravel_index(np.argmax(np.where(fits, both, -1)), both.shape)
     assert fits[i, j]
     return problem, cands, int(rows[sites[0]][i]), int(rows[sites[1]][j]), int(both[i, j])
+
+
+def test_a_parts_plans_look_at_the_masts_lp_and_the_fewest_masts_sites():
+    """The sets a part's plans look for masts at, each with the masts of the parts
+    before (site 4): the fewest masts' MILP's (1, 2), the masts LP's (5, 7) and the
+    fewest masts' LP's (1, 2, 9); without the fewest masts, the masts LP's alone."""
+    empty = CoverInstance(sparse.csr_matrix((0, 0)), 0)
+
+    def masts_lp():
+        return parts_module.SiteLP((0.0, 0.0), 1, np.array([5, 7]), empty, np.zeros(0), None)
+        yield  # generators, like the real ones
+
+    def fewest():
+        return SiteSolution(3, np.array([1, 2]), np.array([1, 2, 9]))
+        yield
+
+    found = {}
+    got = drain(parts_module.part_sites(masts_lp(), np.array([4]), found, fewest()))
+    assert [s.tolist() for s in got.site_sets()] == [[1, 2, 4], [4, 5, 7], [1, 2, 4, 9]]
+    assert got.bound == 0 and found["lp"].used.tolist() == [5, 7]
+    alone = drain(parts_module.part_sites(masts_lp(), np.array([4]), {}))
+    assert [s.tolist() for s in alone.site_sets()] == [[4, 5, 7]]
+
+
+def test_the_fewest_masts_of_a_part_count_the_standing_free_and_take_their_share():
+    """Points 0..2; site 0 sees 0, site 1 sees 1 and 2, site 2 sees 0 and 2. With no
+    mast standing the fewest are sites 1 and either other (2); with site 2 standing
+    (free), one new mast, site 1 (site 2 covers 0 and 2, then 1 needs site 1). The
+    MILP may take 40 % of the part's time left: 4 s of 10."""
+    rows = [[0], [1, 2], [0, 2]]
+    inst = CoverInstance(
+        sparse.csr_matrix(
+            (np.ones(5, np.float32), np.concatenate(rows), [0, 1, 3, 5]), shape=(3, 3)
+        ),
+        3,
+    )
+    site_of = np.arange(3, dtype=np.int64)
+    free = drain(parts_module.fewest_masts(inst, site_of, np.zeros(3, bool), None, None))
+    assert free.bound == 2 and len(free.sites) == 2 and 1 in free.sites
+    standing = np.array([False, False, True])
+    one = drain(parts_module.fewest_masts(inst, site_of, standing, None, None))
+    assert one.bound == 1 and 1 in one.sites and 0 not in one.sites
+    limits = []
+    real = parts_module.site_cover
+
+    def spy(inst, site_of, n_sites, deadline, *args):
+        limits.append(deadline - time.perf_counter())
+        return (yield from real(inst, site_of, n_sites, deadline, *args))
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(parts_module, "site_cover", spy)
+        drain(parts_module.fewest_masts(inst, site_of, standing, time.perf_counter() + 10, None))
+    assert parts_module.FEWEST_SHARE == 0.4 and limits[0] == pytest.approx(4.0, abs=0.2)
 
 
 def test_rejoin_moves_a_sensor_to_the_other_mast_and_closes_one():

@@ -35,6 +35,7 @@ rounding, the mast-aware MILP's plan) is one generator with its stop and deadlin
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 import threading
 import time
@@ -84,6 +85,8 @@ from .joint import MastsSensors, enough_sensors, joint_bound, masts_sensors_lp
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
+
+log = logging.getLogger(__name__)
 
 # Candidates whose LP reduced cost is within this join the pool plans are built from.
 POOL_REDUCED_COST = 0.2
@@ -276,6 +279,7 @@ def masts_then_plan(
     plan: bool,
     milp: bool = True,
     known: Generator[None, None, SiteSolution] | None = None,
+    every_start: bool = False,
 ) -> Generator[Any, None, tuple[SiteSolution, list[int] | None]]:
     """The fewest masts and, when ``plan``, a plan on a few positions: on the sites
     of the fewest masts' MILP and on those of its LP relaxation (more sites, each
@@ -285,18 +289,17 @@ def masts_then_plan(
     when there is no plan. Each plan is yielded as an ``Incumbent`` when found, so the
     progress shows it while the LP still works. ``milp``: solve the fewest masts'
     MILP (else its LP only); ``known``: where the sites come from instead (a part's
-    masts LP, ``PartInputs``)."""
+    masts LP, ``PartInputs``); ``every_start``: the mast-aware MILP over the masts of
+    every site set's plan, the cheapest first, while the time lasts, and the best of
+    them (a part's: there the cheapest start is a poor guide, see ``parts.py``)."""
     if known is None:
         known = _fewest_masts(problem, cands, inst, deadline, stop, milp)
     sites = yield from known
     if not plan or (stop is not None and stop.is_set()):
         return sites, None
     site_of = cands.position
-    site_sets = [on for on in (sites.sites, sites.lp_sites) if len(on)]
-    if len(site_sets) == 2 and np.array_equal(site_sets[0], site_sets[1]):
-        site_sets.pop()
     starts: list[Cover] = []
-    for on in site_sets:
+    for on in sites.site_sets():
         pool = np.flatnonzero(np.isin(site_of, on)).astype(np.int64)
         mc, sc = mast_aware_costs(problem, cands, len(pool))
         start = complete(Cover(inst), pool, site_of, mc, sc)
@@ -312,17 +315,32 @@ def masts_then_plan(
         yield None
     if not starts:
         return sites, None
-    start = min(starts, key=lambda c: plan_value(problem, cands, c.chosen))
-    yield Incumbent(plan_value(problem, cands, start.chosen))
-    used = np.unique(site_of[start.chosen])
-    cols = milp_candidates(inst, site_of, used, start.chosen)
-    mc, sc = mast_aware_costs(problem, cands, len(cols))
-    chosen = yield from sensors_on_sites(
-        inst, site_of, used, start.chosen, mc, sc, deadline, stop, cols=cols
-    )
-    if chosen:
-        yield Incumbent(plan_value(problem, cands, chosen))
-    return sites, chosen
+    starts.sort(key=lambda c: plan_value(problem, cands, c.chosen))
+    yield Incumbent(plan_value(problem, cands, starts[0].chosen))
+    best: list[int] | None = None
+    best_value = math.inf
+    for i, start in enumerate(starts if every_start else starts[:1]):
+        if i and (
+            (stop is not None and stop.is_set())
+            or (deadline is not None and time.perf_counter() >= deadline)
+        ):
+            break
+        used = np.unique(site_of[start.chosen])
+        cols = milp_candidates(inst, site_of, used, start.chosen)
+        mc, sc = mast_aware_costs(problem, cands, len(cols))
+        began = time.perf_counter()
+        chosen = yield from sensors_on_sites(
+            inst, site_of, used, start.chosen, mc, sc, deadline, stop, cols=cols
+        )
+        value = plan_value(problem, cands, chosen) if chosen else math.inf
+        log.info(
+            "mast-aware MILP on %d sites, %d candidates: %g -> %g in %.1f s", len(used),
+            len(cols), plan_value(problem, cands, start.chosen), value, time.perf_counter() - began,
+        )  # fmt: skip
+        if value < best_value:
+            best, best_value = chosen, value
+            yield Incumbent(value)
+    return sites, best
 
 
 def _fewest_masts(
@@ -415,7 +433,9 @@ def prove_bound(
         joint = _JointStart(problem, cands, inst, best, deadline, stop)
         known = joint.keep_sites(_fewest_masts(problem, cands, inst, deadline, stop, milp))
         lp_gen = joint.then(lp_gen)
-    masts = masts_then_plan(problem, cands, inst, deadline, stop, plan, milp, known)
+    masts = masts_then_plan(
+        problem, cands, inst, deadline, stop, plan, milp, known, every_start=part is not None
+    )
     if joint is not None:
         masts = joint.then(masts)
     both = _both(lp_gen, masts)

@@ -81,6 +81,7 @@ from .bound import (
     parts_of,
     quiet,
     sensors_on_sites,
+    site_cover,
 )
 from .cover import Cover, CoverInstance, complete
 from .lp import (
@@ -113,6 +114,11 @@ SITE_POLISH_STEPS = 1000
 # given. Town04's plan of 306 sensors went from 687 to 632 in 583 s of re-planning by
 # windows, against nothing in the 50 s that 10 % left it (2026-11-27).
 REJOIN_SHARE = 0.25
+# The share of a part's time left that the fewest masts' MILP may take (``fewest_masts``):
+# on Town01's three parts its sites, beside the masts LP's, took the parts' plans
+# from 55, 74 and 68 to 51, 66 and 56 (each part alone, 2026-11-27), its LP and MILP
+# in 28-45 s of a part's 157.
+FEWEST_SHARE = 0.4
 # The most masts re-planned at once (``rejoin_windows``): Town01's 33 took 22 s
 # (1,675 candidates); Town04's 117 at once found nothing cheaper in their share
 # (about 160 s).
@@ -255,16 +261,52 @@ def either_side(
 
 
 def part_sites(
-    masts_lp: Generator[None, None, SiteLP], before: I64, found: dict[str, Any]
+    masts_lp: Generator[None, None, SiteLP],
+    before: I64,
+    found: dict[str, Any],
+    fewest: Generator[None, None, SiteSolution] | None = None,
 ) -> Generator[None, None, SiteSolution]:
-    """The sites a part's plans look for masts at: those its masts LP (``site_line``)
-    uses and ``before`` (the masts the parts before stood there). The LP (``SiteLP``)
-    goes into ``found`` ("lp", with "seconds") once it is solved."""
+    """The sets of sites a part's plans look for masts at, each with ``before`` (the
+    masts the parts before stood there): those its masts LP (``site_line``) uses and,
+    after it, with ``fewest`` (``fewest_masts``), the fewest masts' MILP's and its
+    LP's. The masts LP (``SiteLP``) goes into ``found`` ("lp", with "seconds") once it
+    is solved."""
     t0 = time.perf_counter()
     lp = yield from masts_lp
     found.update(lp=lp, seconds=time.perf_counter() - t0)
     mine = np.union1d(lp.used, before).astype(np.int64)
-    return SiteSolution(0, mine[:0], mine)
+    if fewest is None:
+        return SiteSolution(0, mine[:0], mine)
+    t1 = time.perf_counter()
+    least = yield from fewest
+    found.update(fewest_seconds=time.perf_counter() - t1)
+    log.info(
+        "fewest masts: %d (%d sites; %d in its LP) in %.1f s", least.bound, len(least.sites),
+        len(least.lp_sites), found["fewest_seconds"],
+    )  # fmt: skip
+    milp, relaxed = (
+        np.union1d(on, before).astype(np.int64) if len(on) else on
+        for on in (least.sites, least.lp_sites)
+    )
+    return SiteSolution(0, milp, mine, (relaxed,))
+
+
+def fewest_masts(
+    inst: CoverInstance,
+    site_of: I64,
+    standing: NDArray[np.bool_],
+    deadline: float | None,
+    stop: threading.Event | None,
+) -> Generator[None, None, SiteSolution]:
+    """The fewest new masts whose candidates cover what is left of a part
+    (``bound.site_cover`` on ``inst``; ``standing``: (sites,) where masts stand,
+    those of the parts before included, at no cost), for at most ``FEWEST_SHARE`` of
+    the part's time left when it starts (``deadline``): where its plans may need
+    fewer masts than on the sites its masts LP uses (that LP prices a site at its
+    share of the part, so it spreads over more of them)."""
+    now = time.perf_counter()
+    limit = None if deadline is None else now + FEWEST_SHARE * max(0.0, deadline - now)
+    return (yield from site_cover(inst, site_of, len(standing), limit, stop, True, standing))
 
 
 def _mast_sites(problem: Problem, sensors: list[FixedSensor]) -> I64:
@@ -695,10 +737,13 @@ def solve_in_parts(
                 # parts before stood theirs, which cost it nothing more.
                 used = _mast_sites(problem, solution.sensors[first:])
                 masts_lp: dict[str, Any] = {}
+                standing = problem.space.standing.copy()
+                standing[used] = True
                 sites = part_sites(
                     site_line(full, part, problem.space.standing, part_deadline, stop),
                     np.intersect1d(used, part.sites),
                     masts_lp,
+                    fewest_masts(left, cands.position, standing, part_deadline, stop),
                 )
                 unit = costs[cands.model] if mixed else 1.0
                 how = PartInputs(unit * part.share, full, sites)
