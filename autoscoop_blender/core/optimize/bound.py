@@ -922,8 +922,8 @@ def site_cover(
     """
     m = inst.matrix
     # Site s covers point n when any candidate at s does.
-    # (In float32, exact for these counts: a float64 copy of a Town01 part's 70 M
-    # entries is 0.5 GB more at the run's peak.)
+    # (In float32, exact for these counts: a float64 copy of a Town01 part's 31 M
+    # entries would be 0.25 GB more at the run's peak.)
     one = np.float32
     pick = sparse.csr_matrix(
         (np.ones(len(site_of), one), (site_of, np.arange(len(site_of)))),

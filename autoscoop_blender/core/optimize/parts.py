@@ -116,8 +116,8 @@ SITE_POLISH_STEPS = 1000
 REJOIN_SHARE = 0.25
 # The share of a part's time left that the fewest masts' MILP may take (``fewest_masts``):
 # on Town01's three parts its sites, beside the masts LP's, took the parts' plans
-# from 55, 74 and 68 to 51, 66 and 56 (each part alone, 2026-11-27), its LP and MILP
-# in 28-45 s of a part's 157.
+# from 55, 74 and 68 to 51, 66 and 56 (each part alone, 2026-11-27); in the default
+# run its LP and MILP took 30, 24 and 61 s (the last cut by this share).
 FEWEST_SHARE = 0.4
 # The most masts re-planned at once (``rejoin_windows``): Town01's 33 took 22 s
 # (1,675 candidates); Town04's 117 at once found nothing cheaper in their share
@@ -733,8 +733,9 @@ def solve_in_parts(
                 part_deadline = None
                 if parts_end is not None:
                     part_deadline = time.perf_counter() + (parts_end - time.perf_counter()) * share
-                # Its plans look for masts where its masts LP puts them and where the
-                # parts before stood theirs, which cost it nothing more.
+                # Its plans look for masts where its masts LP puts them, where the
+                # fewest new masts stand, and where the parts before stood theirs,
+                # which cost it nothing more.
                 used = _mast_sites(problem, solution.sensors[first:])
                 masts_lp: dict[str, Any] = {}
                 standing = problem.space.standing.copy()
