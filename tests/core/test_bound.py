@@ -325,7 +325,8 @@ def _cheapest_plan(inst, site_of, cap, mast_cost):
 def test_the_mast_aware_milp_finds_the_cheapest_plan_on_merged_points(seed):
     """Random instances of 9 candidates on 3 sites, where many of the 30 points are seen
     alike (merged), k = 1 or 2 per point, a cap of 2: the MILP's plan costs what the
-    cheapest plan by enumeration does."""
+    cheapest plan by enumeration does; with a cutoff above it, the same; with one
+    below it (no plan is that cheap), the start comes back."""
     rng = np.random.default_rng(seed)
     rows = [rng.choice(30, size=rng.integers(4, 16), replace=False) for _ in range(9)]
     site_of = np.repeat(np.arange(3), 3)
@@ -340,6 +341,10 @@ def test_the_mast_aware_milp_finds_the_cheapest_plan_on_merged_points(seed):
     got = drain(sensors_on_sites(inst, site_of, np.arange(3), start, 2.0, 1.0))
     assert 2.0 * len(np.unique(site_of[got])) + len(got) == want
     assert np.bincount(site_of[got]).max() <= 2
+    above = drain(sensors_on_sites(inst, site_of, np.arange(3), start, 2.0, 1.0, cutoff=want + 0.5))
+    assert 2.0 * len(np.unique(site_of[above])) + len(above) == want
+    below = drain(sensors_on_sites(inst, site_of, np.arange(3), start, 2.0, 1.0, cutoff=want - 1.0))
+    assert below == start
 
 
 def test_the_mast_aware_milp_counts_a_point_only_at_its_k():

@@ -724,3 +724,20 @@ def test_the_bound_shown_while_proving_is_a_proof_and_counts_the_masts(monkeypat
     masts = LP.mast_cost * m["masts_lower_bound"]
     assert masts > 0
     assert any(b >= masts for after, b in shown if not after)
+
+
+def test_a_thinned_instance_keeps_one_point_a_square_and_the_goal_share():
+    """Points at x = 0, 0.5, 1.5, 2.5 and 4.1 m (y = 0.2): in 2 m squares, [0, 2) holds
+    the first three, [2, 4) the fourth, [4, 6) the fifth, so points 0, 3 and 4 stay
+    (each the first of its square), with their columns and k. A goal of 4 of 5 becomes
+    ceil(4 * 3 / 5) = 3 of 3."""
+    xy = np.array([[0.0, 0.2], [0.5, 0.2], [1.5, 0.2], [2.5, 0.2], [4.1, 0.2]])
+    matrix = sparse.csr_matrix(np.array([[1, 1, 0, 0, 1], [0, 0, 1, 1, 0]], dtype=np.float32))
+    need = np.array([1, 1, 1, 2, 1], dtype=np.int32)
+    inst = CoverInstance(matrix, 4, xy, need, np.array([0, 1]), 4)
+    thin = inst.thinned(2.0)
+    assert thin.xy.tolist() == xy[[0, 3, 4]].tolist()
+    assert thin.matrix.toarray().tolist() == [[1, 0, 1], [0, 1, 0]]
+    assert thin.k.tolist() == [1, 2, 1] and thin.goal == 3
+    assert thin.site_of.tolist() == [0, 1] and thin.cap == 4
+    assert CoverInstance(matrix, 2, xy).thinned(2.0).goal == 2  # ceil(2 * 3 / 5)

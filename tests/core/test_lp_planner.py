@@ -761,14 +761,18 @@ def test_a_parts_plan_is_the_best_milp_over_every_start(monkeypatch):
     start is the cheaper, its MILP first. The MILP is faked to keep a start on site 2
     and to return candidate 0 alone (1) on sites 0, 1. With ``every_start`` (a part's
     plans) both MILPs run and the plan is the cheaper MILP's, though its start was the
-    dearer; without, only the cheaper start's; past the deadline, only the first."""
+    dearer; without, only the cheaper start's; past the deadline, only the first. The
+    second MILP looks only below the first's plan (2 sensors: a cutoff of 2 - 1e-6)."""
     problem = HandLP(TRIANGLE, 3, TRIANGLE_SITES, objective="sensors")
     inst = lp_module.instance(problem.candidates, problem, np.zeros(3, bool))
     _fake_sites(monkeypatch, [0, 1], [0, 1, 2])
     milps = []
 
-    def sensors_on_sites(inst, site_of, sites, start, *args, **kwargs):
+    cutoffs = []
+
+    def sensors_on_sites(inst, site_of, sites, start, *args, cutoff=None, **kwargs):
         milps.append(sorted(int(s) for s in sites))
+        cutoffs.append(cutoff)
         return list(start) if 2 in sites else [0]
         yield  # a generator, like the real one
 
@@ -786,6 +790,7 @@ def test_a_parts_plan_is_the_best_milp_over_every_start(monkeypatch):
     plan, found = run(True)
     assert len(milps) == 2 and 2 in milps[0] and len(milps[0]) == 2 and milps[1] == [0, 1]
     assert plan == [0] and found == [2.0, 2.0, 1.0]
+    assert cutoffs == [None, pytest.approx(2.0 - 1e-6, abs=1e-9)]
     plan, found = run(False)
     assert len(milps) == 1 and 2 in milps[0] and len(plan) == 2 and 4 in plan
     assert found == [2.0, 2.0]

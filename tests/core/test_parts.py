@@ -395,31 +395,36 @@ def test_the_fewest_masts_of_a_part_count_the_standing_free_and_take_their_share
     """Points 0..2; site 0 sees 0, site 1 sees 1 and 2, site 2 sees 0 and 2. With no
     mast standing the fewest are sites 1 and either other (2); with site 2 standing
     (free), one new mast, site 1 (site 2 covers 0 and 2, then 1 needs site 1). The
-    MILP may take 40 % of the part's time left: 4 s of 10."""
-    rows = [[0], [1, 2], [0, 2]]
+    MILP may take 40 % of the part's time left: 4 s of 10, on one point in 2 x 2 cells
+    of the grid: point 3, 1 m from point 0 in the same 2 m square, is left out."""
+    rows = [[0, 3], [1, 2], [0, 2, 3]]
     inst = CoverInstance(
         sparse.csr_matrix(
-            (np.ones(5, np.float32), np.concatenate(rows), [0, 1, 3, 5]), shape=(3, 3)
+            (np.ones(7, np.float32), np.concatenate(rows), [0, 2, 4, 7]), shape=(3, 4)
         ),
-        3,
+        4,
+        xy=np.array([[0.0, 0.0], [10.0, 0.0], [20.0, 0.0], [1.0, 0.0]]),
     )
     site_of = np.arange(3, dtype=np.int64)
-    free = drain(parts_module.fewest_masts(inst, site_of, np.zeros(3, bool), None, None))
+    free = drain(parts_module.fewest_masts(inst, site_of, np.zeros(3, bool), 1.0, None, None))
     assert free.bound == 2 and len(free.sites) == 2 and 1 in free.sites
     standing = np.array([False, False, True])
-    one = drain(parts_module.fewest_masts(inst, site_of, standing, None, None))
+    one = drain(parts_module.fewest_masts(inst, site_of, standing, 1.0, None, None))
     assert one.bound == 1 and 1 in one.sites and 0 not in one.sites
-    limits = []
+    seen = []
     real = parts_module.site_cover
 
     def spy(inst, site_of, n_sites, deadline, *args):
-        limits.append(deadline - time.perf_counter())
+        seen.append((deadline - time.perf_counter(), inst.n_points, inst.goal))
         return (yield from real(inst, site_of, n_sites, deadline, *args))
 
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(parts_module, "site_cover", spy)
-        drain(parts_module.fewest_masts(inst, site_of, standing, time.perf_counter() + 10, None))
-    assert parts_module.FEWEST_SHARE == 0.4 and limits[0] == pytest.approx(4.0, abs=0.2)
+        drain(
+            parts_module.fewest_masts(inst, site_of, standing, 1.0, time.perf_counter() + 10, None)
+        )
+    assert parts_module.FEWEST_SHARE == 0.4 and seen[0][0] == pytest.approx(4.0, abs=0.2)
+    assert parts_module.FEWEST_CELLS == 2 and seen[0][1:] == (3, 3)
 
 
 def test_rejoin_moves_a_sensor_to_the_other_mast_and_closes_one():

@@ -983,6 +983,16 @@ def site_cover(
     return SiteSolution(bound, chosen, lp_sites)
 
 
+def milp_objective(
+    chosen: list[int], site_of: I64, mast_cost: MastCost, sensor_cost: SensorCost
+) -> float:
+    """The mast-aware MILP's objective of a plan (``bound.sensors_on_sites``): its
+    sensors' costs and its masts'."""
+    picked = np.asarray(chosen, dtype=np.int64)
+    masts = np.unique(site_of[picked])
+    return float(np.sum(cost_at(sensor_cost, picked)) + np.sum(cost_at(mast_cost, masts)))
+
+
 def sensors_on_sites(
     inst: CoverInstance,
     site_of: I64,
@@ -993,6 +1003,7 @@ def sensors_on_sites(
     deadline: float | None = None,
     stop: threading.Event | None = None,
     cols: I64 | None = None,
+    cutoff: float | None = None,
 ) -> Generator[None, None, list[int]]:
     """The best plan on ``sites`` by the mast-aware MILP: every candidate at those
     sites, or those of ``cols`` there (x_c, binary, ``sensor_cost``: one for all or
@@ -1001,7 +1012,9 @@ def sensors_on_sites(
     (candidates at those sites that reach the goal) is HiGHS' first incumbent. At most
     ``MAX_NODES`` branch-and-bound nodes, so the answer does not depend on the
     machine's speed; stops at ``deadline`` or ``stop`` with the best plan so far.
-    Returns the chosen candidates."""
+    ``cutoff``: only plans whose objective is below it are looked for (HiGHS prunes
+    every node whose bound is not; a start above it is not given to it); ``start``
+    when none is found. Returns the chosen candidates."""
     if cols is None:
         cols = np.flatnonzero(np.isin(site_of, sites)).astype(np.int64)
     cols = np.unique(cols[np.isin(site_of[cols], sites)])
@@ -1012,6 +1025,8 @@ def sensors_on_sites(
     limit = None if deadline is None else deadline - time.perf_counter()
     h = _new_highs(limit)
     h.setOptionValue("mip_max_nodes", MAX_NODES)
+    if cutoff is not None:
+        h.setOptionValue("objective_bound", float(cutoff))
     _cover_rows(h, n, inst.goal, merged.need if inst.multi else None, merged.weight)
     _add_columns(h, merged.matrix, cost_at(sensor_cost, cols), 1.0)
     none = np.zeros(0, dtype=np.int32)
@@ -1044,10 +1059,15 @@ def sensors_on_sites(
         .astype(float)
         .tolist()
     )
-    h.setSolution(first)
+    if cutoff is None or milp_objective(start, site_of, mast_cost, sensor_cost) < cutoff:
+        h.setSolution(first)
     if (yield from _run(h, stop)) is Solve.GONE:
         return list(start)
     values = np.asarray(h.getSolution().col_value)
     if len(values) != n + n_cols + n_sites or h.getInfo().primal_solution_status != 2:
         return list(start)
-    return [int(c) for c in cols[values[n : n + n_cols] > 0.5]]
+    chosen = [int(c) for c in cols[values[n : n + n_cols] > 0.5]]
+    # HiGHS' heuristics may return a plan above the cutoff (it prunes by it, no more).
+    if cutoff is not None and milp_objective(chosen, site_of, mast_cost, sensor_cost) >= cutoff:
+        return list(start)
+    return chosen

@@ -81,6 +81,20 @@ class CoverInstance:
             self._by_point = self.matrix.tocsc()
         return self._by_point
 
+    def thinned(self, cell_m: float) -> CoverInstance:
+        """The instance on one point per square of ``cell_m`` (the first in the
+        square), its goal the same share of the points, rounded up: a cheaper model
+        of the ground for a heuristic that needs no proof (no bound of the sample's
+        is one of the whole). Needs ``xy``."""
+        assert self.xy is not None
+        cell = np.floor(self.xy / cell_m).astype(np.int64)
+        _, first = np.unique(cell, axis=0, return_index=True)
+        keep = np.sort(first)
+        goal = -(-self.goal * len(keep) // max(self.n_points, 1))
+        return CoverInstance(
+            self.matrix[:, keep].tocsr(), goal, self.xy[keep], self.k[keep], self.site_of, self.cap
+        )
+
 
 class Cover:
     """Chosen candidates and, per point, how many of them cover it."""
