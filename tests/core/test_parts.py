@@ -315,6 +315,37 @@ def test_a_masts_lp_cut_short_still_proves_most_of_its_value(small_parts, monkey
     assert at_goal(solved) <= value + 1e-6 and len(cut.used) > 0
 
 
+def test_a_masts_lp_solved_to_its_end_takes_few_dual_steps(small_parts, monkeypatch):
+    """A part's masts LP solved to its end proves its value with its own line: it
+    takes ``DualPolish.MIN_STEPS`` dual steps from its duals (either_side's start),
+    not ``SITE_POLISH_STEPS`` from nothing; its line is at least 99 % of the LP
+    solved by the simplex and no more than it. Cut short, the steps are all taken."""
+    inst, part, standing = _middle_part()
+    value = drain(parts_module.cover_lp(*_site_lp_args(inst, part, standing))).value
+    walks = []
+    real_walk = parts_module.DualPolish.walk
+
+    def walk(self, pi, sigma, target, steps=None):
+        walks.append((steps, float(np.abs(pi).sum()) > 0))
+        return real_walk(self, pi, sigma, target, steps)
+
+    monkeypatch.setattr(parts_module.DualPolish, "walk", walk)
+    lp = drain(parts_module.site_line(inst, part, standing, None, None))
+    # (the last walk is site_line's: the LP's own walks come before it)
+    assert walks[-1] == (parts_module.DualPolish.MIN_STEPS, True) and lp.center is not None
+    assert 0.99 * value <= lp.line[0] * inst.goal - lp.line[1] <= value + 1e-6
+    real = parts_module.cover_lp
+
+    def cut(*args, **kwargs):
+        lp = yield from real(*args, **kwargs)
+        return replace(lp, value=math.inf)
+
+    monkeypatch.setattr(parts_module, "cover_lp", cut)
+    walks.clear()
+    drain(parts_module.site_line(inst, part, standing, None, None))
+    assert walks[-1] == (parts_module.SITE_POLISH_STEPS, False)
+
+
 def _site_lp_args(inst, part, standing):
     """The masts LP of ``site_line``, solved to its end (the simplex)."""
     col = np.searchsorted(part.sites, part.cands.position)

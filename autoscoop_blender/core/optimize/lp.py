@@ -634,6 +634,8 @@ def prove_and_plan(
     )
     price = sensor_price(problem, cands) if s.objective == "cost" else 1.0
     rounded = _lp_plans(inst, lp, price)
+    found = len(plans)
+    began = time.perf_counter()
     while stop is None or not stop.is_set():  # each plan is rounded only when asked for
         plan = next(rounded, None)
         if plan is None:
@@ -642,6 +644,12 @@ def prove_and_plan(
         yield solution.progress(
             "search", problem.rho, bound=lower, best=min(map(value, plans)), stage="plans"
         )
+    if log.isEnabledFor(logging.INFO):
+        log.info(
+            "plans: greedy and on the masts %s, rounded from the LP %s in %.1f s",
+            [value(p) for p in plans[:found]], [value(p) for p in plans[found:]],
+            time.perf_counter() - began,
+        )  # fmt: skip
     return min(plans, key=value), bound, lp
 
 
