@@ -22,6 +22,7 @@ from autoscoop_blender.core.coverage.targeted import TargetedEvaluator
 from autoscoop_blender.core.geom.grid import GroundGrid
 from autoscoop_blender.core.model.scene import Area, SceneModel
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA, SensorPose
+from autoscoop_blender.core.optimize import lp as lp_module
 from autoscoop_blender.core.optimize import parts as parts_module
 from autoscoop_blender.core.optimize.base import (
     FixedSensor,
@@ -113,13 +114,25 @@ def test_the_parts_candidates_are_the_whole_grounds_split_by_point(small_parts):
 def test_the_part_wise_bound_never_passes_the_whole_grounds(k, monkeypatch):
     """The same road whole and in 3 parts: every part-wise bound (sensors, masts, cost)
     is at most the whole ground's, which is at most the whole plan's; the joined plan
-    covers the goal, as a recount with a fresh evaluator says."""
+    covers the goal, as a recount with a fresh evaluator says. Plans are rounded
+    from the LP on the whole ground, not in the parts."""
     s = settings(coverage_k=k, rho=0.9)
+    rounded = []
+    real = lp_module._lp_plans
+
+    def lp_plans(*args, **kwargs):
+        rounded.append(1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(lp_module, "_lp_plans", lp_plans)
     whole = Run(road(k), box_caster(WALL), PAPER_CAMERA, s).result()
+    assert rounded
+    rounded.clear()
     monkeypatch.setattr(budget, "PART_POINTS", PART_POINTS)
     run = Run(road(k), box_caster(WALL), PAPER_CAMERA, s)
     assert run.problem.estimate.parts == 3
     parts = run.result()
+    assert not rounded
     w, p = whole.metrics, parts.metrics
     assert p["sensors_lower_bound"] <= w["sensors_lower_bound"] <= w["sensors"]
     assert p["masts_lower_bound"] <= w["masts_lower_bound"] <= w["masts"]
