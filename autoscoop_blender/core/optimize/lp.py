@@ -634,9 +634,9 @@ def prove_and_plan(
         "search", problem.rho, bound=lower, best=min(map(value, plans)), stage="plans"
     )
     price = sensor_price(problem, cands) if s.objective == "cost" else 1.0
-    # A part's plans are not rounded from its LP: on Town01's 3 parts and Town04's first
-    # 4 they were worth 80-173 where greedy per cost had 60-127 and the plan chosen
-    # 47-107, and took 4-16 s a part (2026-11-27).
+    # A part's plans are not rounded from its LP: on Town01's 3 parts and Town04's 8
+    # they were worth 80-200 where the plan chosen (on the masts, or greedy per cost)
+    # was 47-137, and took 1-16 s a part (2026-11-27).
     rounded = _lp_plans(inst, lp, price) if part is None else iter(())
     found = len(plans)
     began = time.perf_counter()
