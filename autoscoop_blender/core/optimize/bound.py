@@ -77,7 +77,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import sparse
 
-from .cover import CoverInstance, MastCost, SensorCost, cost_at
+from .cover import CoverInstance, MastCost, SensorCost, cost_at, plan_price
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
@@ -983,16 +983,6 @@ def site_cover(
     return SiteSolution(bound, chosen, lp_sites)
 
 
-def milp_objective(
-    chosen: list[int], site_of: I64, mast_cost: MastCost, sensor_cost: SensorCost
-) -> float:
-    """The mast-aware MILP's objective of a plan (``bound.sensors_on_sites``): its
-    sensors' costs and its masts'."""
-    picked = np.asarray(chosen, dtype=np.int64)
-    masts = np.unique(site_of[picked])
-    return float(np.sum(cost_at(sensor_cost, picked)) + np.sum(cost_at(mast_cost, masts)))
-
-
 def sensors_on_sites(
     inst: CoverInstance,
     site_of: I64,
@@ -1059,7 +1049,7 @@ def sensors_on_sites(
         .astype(float)
         .tolist()
     )
-    if cutoff is None or milp_objective(start, site_of, mast_cost, sensor_cost) < cutoff:
+    if cutoff is None or plan_price(start, site_of, mast_cost, sensor_cost) < cutoff:
         h.setSolution(first)
     if (yield from _run(h, stop)) is Solve.GONE:
         return list(start)
@@ -1068,6 +1058,6 @@ def sensors_on_sites(
         return list(start)
     chosen = [int(c) for c in cols[values[n : n + n_cols] > 0.5]]
     # HiGHS' heuristics may return a plan above the cutoff (it prunes by it, no more).
-    if cutoff is not None and milp_objective(chosen, site_of, mast_cost, sensor_cost) >= cutoff:
+    if cutoff is not None and plan_price(chosen, site_of, mast_cost, sensor_cost) >= cutoff:
         return list(start)
     return chosen

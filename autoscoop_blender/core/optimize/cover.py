@@ -161,6 +161,16 @@ def cost_at(cost: MastCost | SensorCost, index: I64) -> NDArray[np.float64]:
     return np.asarray(cost, dtype=float)[index]
 
 
+def plan_price(
+    chosen: list[int], site_of: I64, mast_cost: MastCost, sensor_cost: SensorCost
+) -> float:
+    """What a plan of candidates costs at these prices: its sensors' and its masts'
+    (the mast-aware MILP's objective, ``bound.sensors_on_sites``)."""
+    picked = np.asarray(chosen, dtype=np.int64)
+    masts = np.unique(site_of[picked])
+    return float(cost_at(sensor_cost, picked).sum() + cost_at(mast_cost, masts).sum())
+
+
 def complete(
     cover: Cover,
     pool: I64,
@@ -218,8 +228,7 @@ def close_sites(cover: Cover, site_of: I64, mast_cost: MastCost, sensor_cost: Se
     inst = cover.inst
 
     def cost(c: Cover) -> float:
-        masts = cost_at(mast_cost, np.unique(site_of[c.chosen])).sum()
-        return float(masts) + float(cost_at(sensor_cost, np.array(c.chosen, dtype=int)).sum())
+        return plan_price(c.chosen, site_of, mast_cost, sensor_cost)
 
     best = cover
     closed = True

@@ -67,7 +67,6 @@ from .bound import (
     SiteSolution,
     cover_lp,
     mast_aware_bound,
-    milp_objective,
     parts_of,
     sensors_on_sites,
     site_cover,
@@ -82,6 +81,7 @@ from .cover import (
     complete,
     cost_at,
     improve,
+    plan_price,
 )
 from .joint import MastsSensors, enough_sensors, joint_bound, masts_sensors_lp
 
@@ -336,7 +336,7 @@ def masts_then_plan(
         # After the first, only a plan cheaper than the best so far is of use: HiGHS
         # prunes the rest (on Town01's third part the last start's MILP took 11.4 s
         # for 56 where the first's had 47).
-        cutoff = None if best is None else milp_objective(best, site_of, mc, sc) - CUTOFF_EPS
+        cutoff = None if best is None else plan_price(best, site_of, mc, sc) - CUTOFF_EPS
         began = time.perf_counter()
         chosen = yield from sensors_on_sites(
             inst, site_of, used, start.chosen, mc, sc, deadline, stop, cols=cols, cutoff=cutoff
