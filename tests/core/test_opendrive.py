@@ -543,6 +543,18 @@ def test_bad_geometry_skips_the_road(tmp_path, kind, words):
     assert w.startswith("road 13: ") and words in w and w.endswith("road skipped") and "\n" not in w
 
 
+def test_a_spiral_starting_at_minus_1e308_is_asked_for_without_overflow(tmp_path):
+    # Found by the fuzzer: the planView's jump check evaluates the spiral at its own
+    # start, 1e308 m before the line's, and squaring that span overflowed a Python
+    # float. The station is outside the road's lanes, so the road imports unwarned.
+    plan = geometry(0.0, 0, 0, 0, 0.5, '<arc curvature="0.0"/>') + geometry(
+        -1e308, 0, 0, 0, 0.5, '<spiral curvStart="0.0" curvEnd="0.25"/>'
+    )
+    result = build(tmp_path, xodr(road("1", 1.0, plan, simple_lanes())))
+    assert result.warnings == []
+    assert [s.road_id for s in result.surfaces] == ["1"]
+
+
 def test_broken_junction_link_is_named(tmp_path):
     junction = (
         '<junction id="40" name="j"><connection id="0" incomingRoad="1" '

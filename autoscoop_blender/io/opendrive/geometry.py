@@ -89,7 +89,9 @@ def _spiral_by_quadrature(k0: float, dk: float, ds: F64) -> tuple[F64, F64]:
     asked for (0 to the largest ds), not the record's length: a record may be far
     longer than the road that uses it, or end before the next one starts."""
     span = float(np.max(ds, initial=0.0))
-    turn = abs(k0) * span + 0.5 * abs(dk) * span**2
+    # A product, not span ** 2: a Python float power raises on overflow (a station at
+    # s = -1e308 asked of a spiral) where the product gives inf and the cells their cap.
+    turn = abs(k0) * span + 0.5 * abs(dk) * span * span
     n = int(min(max(np.ceil(turn / 0.1), np.ceil(span / 50.0), 1), 100_000))
     edges = np.linspace(0.0, max(span, 1e-9), n + 1)
 
