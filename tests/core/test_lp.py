@@ -741,3 +741,8 @@ def test_a_thinned_instance_keeps_one_point_a_square_and_the_goal_share():
     assert thin.k.tolist() == [1, 2, 1] and thin.goal == 3
     assert thin.site_of.tolist() == [0, 1] and thin.cap == 4
     assert CoverInstance(matrix, 2, xy).thinned(2.0).goal == 2  # ceil(2 * 3 / 5)
+    # The points in reverse: the kept ones are again each square's first in the
+    # points' order (0, 1, 2), and the last three share the third square.
+    keep, square = CoverInstance(matrix, 2, xy[::-1]).cells(2.0)
+    assert keep.tolist() == [0, 1, 2] and square.tolist() == [0, 1, 2, 2, 2]
+    assert inst.cells(2.0)[1].tolist() == [0, 0, 0, 1, 2]

@@ -305,58 +305,78 @@ def _middle_part():
     return replace(inst, goal=math.ceil(0.9 * len(points))), part, problem.space.standing
 
 
+# The road's grid is 2 m: one point in 2 x 2 cells of it, as a run samples.
+CELL_M = 4.0
+
+
+def test_a_masts_lp_on_a_sample_proves_most_of_its_value_on_every_point(small_parts):
+    """A part's masts LP is solved on one point per 4 m square, and the dual steps
+    from its duals prove a line over every point: at the part's goal at most the LP
+    over every point (solved by the simplex) and at least 95 % of it."""
+    inst, part, standing = _middle_part()
+    seen = []
+    real = parts_module.cover_lp
+
+    def spy(lp_inst, *args, **kwargs):
+        seen.append(lp_inst.n_points)
+        return (yield from real(lp_inst, *args, **kwargs))
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(parts_module, "cover_lp", spy)
+        lp = drain(parts_module.site_line(inst, part, standing, CELL_M, None, None))
+    squares = np.unique(np.floor(inst.xy / CELL_M), axis=0)
+    assert seen == [len(squares)] and len(squares) < inst.n_points / 3
+    value = drain(real(*_site_lp_args(inst, part, standing))).value
+    assert 0.95 * value <= lp.line[0] * inst.goal - lp.line[1] <= value + 1e-6
+    assert len(lp.used) > 0 and lp.center is not None
+
+
 def test_a_masts_lp_cut_short_still_proves_most_of_its_value(small_parts, monkeypatch):
     """A part's masts LP whose interior point solve gives nothing (cut by its limit):
-    the dual steps still prove a line, at most the LP's value and at least 90 % of it
-    at the part's goal (the LP solved to its end on the same part gives the value)."""
+    the dual steps from nothing still prove a line, at most the LP's value and at
+    least 90 % of it at the part's goal, and the plans look at a greedy cover's sites."""
     inst, part, standing = _middle_part()
-
-    def at_goal(line):
-        return line[0] * inst.goal - line[1]
-
-    solved = drain(parts_module.site_line(inst, part, standing, None, None)).line
+    value = drain(parts_module.cover_lp(*_site_lp_args(inst, part, standing))).value
     real = parts_module.cover_lp
-    value = drain(real(*_site_lp_args(inst, part, standing))).value
 
     def nothing(*args, **kwargs):
         lp = yield from real(*args, **kwargs)
-        return replace(lp, x=np.zeros(0), slope=0.0, intercept=0.0)
+        return replace(lp, x=np.zeros(0), pi=None)
 
     monkeypatch.setattr(parts_module, "cover_lp", nothing)
-    cut = drain(parts_module.site_line(inst, part, standing, None, None))
-    assert 0.9 * value <= at_goal(cut.line) <= value + 1e-6
-    assert at_goal(solved) <= value + 1e-6 and len(cut.used) > 0
+    cut = drain(parts_module.site_line(inst, part, standing, CELL_M, None, None))
+    assert 0.9 * value <= cut.line[0] * inst.goal - cut.line[1] <= value + 1e-6
+    assert len(cut.used) > 0
 
 
-def test_a_masts_lp_solved_to_its_end_takes_few_dual_steps(small_parts, monkeypatch):
-    """A part's masts LP solved to its end proves its value with its own line: it
-    takes ``DualPolish.MIN_STEPS`` dual steps from its duals (either_side's start),
-    not ``SITE_POLISH_STEPS`` from nothing; its line is at least 99 % of the LP
-    solved by the simplex and no more than it. Cut short, the steps are all taken."""
+def test_a_masts_lp_past_its_deadline_takes_the_fewest_dual_steps(small_parts, monkeypatch):
+    """Past the part's deadline the steps end after ``DualPolish.MIN_STEPS``, with a
+    line that still holds; with time, all ``SITE_POLISH_STEPS`` (or until no step
+    helps)."""
     inst, part, standing = _middle_part()
     value = drain(parts_module.cover_lp(*_site_lp_args(inst, part, standing))).value
-    walks = []
+    taken = []
     real_walk = parts_module.DualPolish.walk
 
     def walk(self, pi, sigma, target, steps=None):
-        walks.append((steps, float(np.abs(pi).sum()) > 0))
+        taken.append(self)
         return real_walk(self, pi, sigma, target, steps)
 
     monkeypatch.setattr(parts_module.DualPolish, "walk", walk)
-    lp = drain(parts_module.site_line(inst, part, standing, None, None))
-    # (the last walk is site_line's: the LP's own walks come before it)
-    assert walks[-1] == (parts_module.DualPolish.MIN_STEPS, True) and lp.center is not None
-    assert 0.99 * value <= lp.line[0] * inst.goal - lp.line[1] <= value + 1e-6
-    real = parts_module.cover_lp
+    late = drain(
+        parts_module.site_line(inst, part, standing, CELL_M, time.perf_counter() - 1.0, None)
+    )
+    assert taken[-1].steps == parts_module.DualPolish.MIN_STEPS
+    assert late.line[0] * inst.goal - late.line[1] <= value + 1e-6
+    drain(parts_module.site_line(inst, part, standing, CELL_M, None, None))
+    assert taken[-1].steps > parts_module.DualPolish.MIN_STEPS
 
-    def cut(*args, **kwargs):
-        lp = yield from real(*args, **kwargs)
-        return replace(lp, value=math.inf)
 
-    monkeypatch.setattr(parts_module, "cover_lp", cut)
-    walks.clear()
-    drain(parts_module.site_line(inst, part, standing, None, None))
-    assert walks[-1] == (parts_module.SITE_POLISH_STEPS, False)
+def test_spread_duals_shares_each_sample_dual_among_its_square():
+    """Squares of 2, 1 and 3 points with sample duals 4, 3 and 6: 2 each, 3, 2 each."""
+    square = np.array([0, 2, 0, 1, 2, 2])
+    out = parts_module.spread_duals(np.array([4.0, 3.0, 6.0]), square)
+    assert out.tolist() == [2.0, 2.0, 2.0, 3.0, 2.0, 2.0]
 
 
 def _site_lp_args(inst, part, standing):
@@ -377,7 +397,7 @@ def test_the_masts_lps_lines_hold_at_other_goals(small_parts):
     can cover, and as far below): at each of those goals every line is at most the LP
     solved there to its end (what the lines add to the whole's bound: test_bound)."""
     inst, part, standing = _middle_part()
-    lp = drain(parts_module.site_line(inst, part, standing, None, None))
+    lp = drain(parts_module.site_line(inst, part, standing, CELL_M, None, None))
     reach = parts_module.coverable(inst)
     lines = [lp.line, *drain(parts_module.either_side(lp, reach, None, None))]
     # Past the run's deadline: one step each, lines that hold all the same.
@@ -468,7 +488,7 @@ def test_the_fewest_masts_of_a_part_count_the_standing_free_and_take_their_share
             parts_module.fewest_masts(inst, site_of, standing, 1.0, time.perf_counter() + 10, None)
         )
     assert parts_module.FEWEST_SHARE == 0.4 and seen[0][0] == pytest.approx(4.0, abs=0.2)
-    assert parts_module.FEWEST_CELLS == 2 and seen[0][1:] == (3, 3)
+    assert parts_module.SAMPLE_CELLS == 2 and seen[0][1:] == (3, 3)
 
 
 def test_rejoin_moves_a_sensor_to_the_other_mast_and_closes_one():

@@ -81,15 +81,25 @@ class CoverInstance:
             self._by_point = self.matrix.tocsc()
         return self._by_point
 
-    def thinned(self, cell_m: float) -> CoverInstance:
-        """The instance on one point per square of ``cell_m`` (the first in the
-        square), its goal the same share of the points, rounded up: a cheaper model
-        of the ground for a heuristic that needs no proof (no bound of the sample's
-        is one of the whole). Needs ``xy``."""
+    def cells(self, cell_m: float) -> tuple[I64, I64]:
+        """The squares of ``cell_m`` the points fall in: (S,) the first point of each
+        square, in the points' order, and (N,) the square of each point, as an index
+        into those. Needs ``xy``."""
         assert self.xy is not None
         cell = np.floor(self.xy / cell_m).astype(np.int64)
-        _, first = np.unique(cell, axis=0, return_index=True)
-        keep = np.sort(first)
+        _, first, square = np.unique(cell, axis=0, return_index=True, return_inverse=True)
+        order = np.argsort(first)
+        rank = np.empty_like(order)
+        rank[order] = np.arange(len(order))
+        return first[order].astype(np.int64), rank[square.ravel()].astype(np.int64)
+
+    def thinned(self, cell_m: float) -> CoverInstance:
+        """The instance on one point per square of ``cell_m`` (the first in the
+        square, ``cells``), its goal the same share of the points, rounded up: a
+        cheaper model of the ground for a heuristic or a start that needs no proof
+        (no bound of the sample's is one of the whole). Needs ``xy``."""
+        assert self.xy is not None
+        keep, _ = self.cells(cell_m)
         goal = -(-self.goal * len(keep) // max(self.n_points, 1))
         return CoverInstance(
             self.matrix[:, keep].tocsr(), goal, self.xy[keep], self.k[keep], self.site_of, self.cap

@@ -100,18 +100,19 @@ Line = tuple[float, float]
 
 log = logging.getLogger(__name__)
 
-# The masts LP of a part gets at most this long, s: its dense columns are slow to
-# solve (a part of Town04: 57 s with the interior point method; by column generation
-# with the simplex, 288 s).
+# The masts LP of a part gets at most this long, s (on its sample, ``site_line``).
 SITE_LP_S = 90.0
 # A site is one the LP uses above this value (an interior point's values are never 0).
 SITE_USED = 1e-3
-# Dual steps on a part's masts LP (``site_line``, ``either_side``): 20-35 ms each on the
-# parts of six tiles of full_ground and of Town04 (2026-11-26).
+# Dual steps on a part's masts LP over every point (``site_line``, ``either_side``): 5 ms
+# each on Town04's third part (2,130 sites, 13,586 points), 20-35 ms on the parts of
+# six tiles of full_ground (2026-11-26/28).
 SITE_POLISH_STEPS = 1000
-# A part's masts LP whose own line proves this share of its value takes no dual steps
-# but ``DualPolish.MIN_STEPS`` (they add nothing there).
-SITE_PROVEN = 0.99
+# The dual steps of a masts LP yield once per this much of them, s. They share the
+# main thread with the sensors LP's steps beside its solves, one of those (0.2-0.3 s
+# on a part of Town04) per yield: yielding after each step, 1,000 steps of 5 ms took
+# about 95 s of a Town04 part (2026-11-28).
+WALK_SLICE_S = 0.25
 # The share of the time limit the parts leave to the re-plan over the whole ground
 # (``rejoin_windows``): the parts of Town04 and of 12 tiles use all the time they are
 # given. Town04's plan of 306 sensors went from 687 to 632 in 583 s of re-planning by
@@ -122,11 +123,15 @@ REJOIN_SHARE = 0.25
 # from 55, 74 and 68 to 51, 66 and 56 (each part alone, 2026-11-27); in the default
 # run its LP and MILP took 30, 24 and 61 s (the last cut by this share).
 FEWEST_SHARE = 0.4
-# The fewest masts are looked for on one point in this many grid cells squared: on
-# Town01's third part (7,606 points, 3,259 positions) one in 2 x 2 (2,157 points) gave
-# the same 10 masts as every point, in 7 s instead of 41 s, and they cover 99.0 % of
-# the part's points for a goal of 97 % (2026-11-27).
-FEWEST_CELLS = 2
+# A part's masts LP and its fewest masts are solved on one point in this many grid
+# cells squared (``CoverInstance.thinned``). On Town04's third part (13,586 points, 2,130
+# sites) the masts LP on one point in 2 x 2 (3,721) took 6.5 s where every point took
+# 85-89 s, for 11.78 against 11.85; 1,000 dual steps over every point from its duals
+# then proved 11.60 (98 %) in 5 s, where the same steps from nothing prove about 97 %.
+# On Town01's third part (7,606 points, 3,259 positions) the fewest masts on 2,157
+# points gave the same 10 masts as every point, in 7 s instead of 41 s, and they cover
+# 99.0 % of the part's points for a goal of 97 % (2026-11-27/28).
+SAMPLE_CELLS = 2
 # The most masts re-planned at once (``rejoin_windows``): Town01's 33 took 22 s
 # (1,675 candidates); Town04's 117 at once found nothing cheaper in their share
 # (about 160 s).
@@ -190,15 +195,21 @@ def site_line(
     inst: CoverInstance,
     part: PartCandidates,
     standing: NDArray[np.bool_],
+    cell_m: float,
     deadline: float | None,
     stop: threading.Event | None,
 ) -> Generator[None, None, SiteLP]:
     """The part's fewest-masts LP as a line in its goal (see the module docstring):
     sites as columns at their share of one mast (0 where a mast stands), each
-    covering what its candidates cover (k > 1: at most min(their count, k) a point),
-    every site at once, by HiGHS' interior point method, for at most ``SITE_LP_S``
-    (cut short, its duals still bound it). The sites the LP uses are where the
-    part's plans look for masts."""
+    covering what its candidates cover (k > 1: at most min(their count, k) a point).
+
+    Solved on one point per square of ``cell_m`` (``CoverInstance.thinned``), every
+    site at once, by HiGHS' interior point method for at most ``SITE_LP_S``: the
+    sites it uses are where the part's plans look for masts. Its duals, each
+    sample point's shared among the points of its square, start
+    ``SITE_POLISH_STEPS`` dual steps over every point, whose best point is the line
+    (the sample's own line proves nothing of the part). The steps end at
+    ``deadline`` or ``stop`` after ``DualPolish.MIN_STEPS``, with the line by then."""
     cands = part.cands
     col = np.searchsorted(part.sites, cands.position)
     pick = sparse.csr_matrix(
@@ -209,11 +220,13 @@ def site_line(
     sites.data = np.minimum(sites.data, inst.k[sites.indices]) if inst.multi else sites.data * 0 + 1
     cost = np.where(standing[part.sites], 0.0, part.site_share)
     every = np.arange(len(part.sites), dtype=np.int64)
-    site_inst = CoverInstance(sites, inst.goal, need=inst.k)
+    site_inst = CoverInstance(sites, inst.goal, inst.xy, need=inst.k)
+    keep, square = site_inst.cells(cell_m)
+    sample = site_inst.thinned(cell_m)
     limit = time.perf_counter() + SITE_LP_S
     lp = yield from quiet(
         cover_lp(
-            site_inst, cost, every, every, integral=False, interior=True, stop=stop,
+            sample, cost, every, every, integral=False, interior=True, stop=stop,
             deadline=limit if deadline is None else min(deadline, limit),
         )
     )  # fmt: skip
@@ -222,28 +235,50 @@ def site_line(
         used = part.sites[lp.columns[lp.x > SITE_USED]]
     else:  # no solution: the sites of a greedy cover
         used = part.sites[greedy]
-    # The interior point method cut short by its limit proves nothing (3 of Town04's 8
-    # parts once, beside the sensors LP on a loaded machine): dual steps from nothing
-    # towards the greedy cover's cost prove 97 % of the LP (1,000 of them: 6-10 s on
-    # Town01's parts, 75-93 s on Town04's). Where its own line proves nearly its
-    # value (no dual point proves more), a few steps from its duals give
-    # ``either_side`` its start.
-    line = (lp.slope, lp.intercept)
     polish = DualPolish(site_inst, cost)
-    target = float(cost[greedy].sum())
-    proven = lp.slope * site_inst.goal - lp.intercept
-    if lp.pi is not None and math.isfinite(lp.value) and proven >= SITE_PROVEN * lp.value:
-        start, steps = (lp.pi, lp.slope), DualPolish.MIN_STEPS
-    else:
-        start, steps = (np.zeros(site_inst.n_points), 0.0), SITE_POLISH_STEPS
-    if stop is None or not stop.is_set():
-        for _ in polish.walk(*start, target, steps):
-            yield None
-    value, slope, intercept = polish.line()
-    if value > line[0] * site_inst.goal - line[1]:
-        line = (slope, intercept)
+    if lp.pi is not None and len(lp.pi) == len(keep):
+        start = spread_duals(lp.pi, square), lp.slope * len(keep) / max(site_inst.n_points, 1)
+    else:  # cut short before its first solve: from nothing
+        start = np.zeros(site_inst.n_points), 0.0
+    yield from _walk(polish, start, float(cost[greedy].sum()), deadline, stop)
+    _, slope, intercept = polish.line()
     used = np.sort(used).astype(np.int64)
-    return SiteLP(line, lp.rounds, used, site_inst, cost, polish.center)
+    return SiteLP((slope, intercept), lp.rounds, used, site_inst, cost, polish.center)
+
+
+def _walk(
+    polish: DualPolish,
+    start: tuple[F64, float],
+    target: float,
+    deadline: float | None,
+    stop: threading.Event | None,
+) -> Generator[None, None, None]:
+    """``SITE_POLISH_STEPS`` dual steps of ``polish`` from ``start`` (pi, sigma) towards
+    ``target``, yielding once per ``WALK_SLICE_S`` of them; after
+    ``DualPolish.MIN_STEPS`` they end at ``deadline`` or ``stop`` (none once ``stop``
+    is set)."""
+    if stop is not None and stop.is_set():
+        return
+    last = time.perf_counter()
+    for _ in polish.walk(*start, target, SITE_POLISH_STEPS):
+        now = time.perf_counter()
+        if polish.steps >= DualPolish.MIN_STEPS and (
+            (stop is not None and stop.is_set()) or (deadline is not None and now > deadline)
+        ):
+            return
+        if now - last >= WALK_SLICE_S:
+            last = now
+            yield None
+
+
+def spread_duals(pi: F64, square: I64) -> F64:
+    """(N,) point duals from a sample's (S,): each sample point's shared equally among
+    the points of its square (``square``: (N,) an index into the sample). Were the
+    points of a square alike, the LP over every point would have these duals; they
+    are a start for dual steps, not a bound."""
+    count = np.bincount(square, minlength=len(pi))
+    out: F64 = pi[square] / count[square]
+    return out
 
 
 def either_side(
@@ -266,12 +301,7 @@ def either_side(
         at = replace(lp.inst, goal=goal)
         polish = DualPolish(at, lp.cost)
         aim = float(lp.cost[complete(Cover(at), every, sensor_cost=lp.cost + 1e-6).chosen].sum())
-        for _ in polish.walk(*lp.center, aim, SITE_POLISH_STEPS):
-            if (stop is not None and stop.is_set()) or (
-                deadline is not None and time.perf_counter() > deadline
-            ):
-                break
-            yield None
+        yield from _walk(polish, lp.center, aim, deadline, stop)
         lines.append(polish.line()[1:])
     return lines
 
@@ -315,7 +345,7 @@ def fewest_masts(
     stop: threading.Event | None,
 ) -> Generator[None, None, SiteSolution]:
     """The fewest new masts whose candidates cover what is left of a part
-    (``bound.site_cover`` on ``inst`` thinned to one point in ``FEWEST_CELLS``²
+    (``bound.site_cover`` on ``inst`` thinned to one point in ``SAMPLE_CELLS``²
     grid cells of ``grid_m``; ``standing``: (sites,) where masts stand, those of the
     parts before included, at no cost), for at most ``FEWEST_SHARE`` of the part's
     time left when it starts (``deadline``): where its plans may need fewer masts than
@@ -323,7 +353,7 @@ def fewest_masts(
     it spreads over more of them). A heuristic: its bound is the sample's, no proof."""
     now = time.perf_counter()
     limit = None if deadline is None else now + FEWEST_SHARE * max(0.0, deadline - now)
-    sample = inst.thinned(FEWEST_CELLS * grid_m)
+    sample = inst.thinned(SAMPLE_CELLS * grid_m)
     return (yield from site_cover(sample, site_of, len(standing), limit, stop, True, standing))
 
 
@@ -759,7 +789,14 @@ def solve_in_parts(
                 standing = problem.space.standing.copy()
                 standing[used] = True
                 sites = part_sites(
-                    site_line(full, part, problem.space.standing, part_deadline, stop),
+                    site_line(
+                        full,
+                        part,
+                        problem.space.standing,
+                        SAMPLE_CELLS * s.grid_m,
+                        part_deadline,
+                        stop,
+                    ),
                     np.intersect1d(used, part.sites),
                     masts_lp,
                     fewest_masts(left, cands.position, standing, s.grid_m, part_deadline, stop),
