@@ -351,8 +351,8 @@ def test_a_masts_lp_cut_short_still_proves_most_of_its_value(small_parts, monkey
 
 def test_a_masts_lp_past_its_deadline_takes_the_fewest_dual_steps(small_parts, monkeypatch):
     """Past the part's deadline the steps end after ``DualPolish.MIN_STEPS``, with a
-    line that still holds; with time, all ``SITE_POLISH_STEPS`` (or until no step
-    helps)."""
+    line that still holds; with time (none, or ``steps_until`` later), all
+    ``SITE_POLISH_STEPS`` (or until no step helps)."""
     inst, part, standing = _middle_part()
     value = drain(parts_module.cover_lp(*_site_lp_args(inst, part, standing))).value
     taken = []
@@ -369,6 +369,10 @@ def test_a_masts_lp_past_its_deadline_takes_the_fewest_dual_steps(small_parts, m
     assert taken[-1].steps == parts_module.DualPolish.MIN_STEPS
     assert late.line[0] * inst.goal - late.line[1] <= value + 1e-6
     drain(parts_module.site_line(inst, part, standing, CELL_M, None, None))
+    assert taken[-1].steps > parts_module.DualPolish.MIN_STEPS
+    # The part's time spent, the run's not: the steps go on to ``steps_until``.
+    past, later = time.perf_counter() - 1.0, time.perf_counter() + 600.0
+    drain(parts_module.site_line(inst, part, standing, CELL_M, past, None, later))
     assert taken[-1].steps > parts_module.DualPolish.MIN_STEPS
 
 
