@@ -658,3 +658,16 @@ def test_cheapest_counts_is_the_least_cost_of_whole_counts(seed):
         if mast_cost * m + sensor_cost * s >= total
     )
     assert parts_module.cheapest_counts(total, sensors, masts, sensor_cost, mast_cost) == brute
+
+
+def test_a_parts_solve_leaves_time_for_the_builds_after_it():
+    """900 s to the parts' end, a quarter of it this part's: 225 s with no build
+    measured yet; builds of 20 and 40 s so far reserve 3 x 30 s for the three parts
+    after it, so (900 - 90) / 4 = 202.5 s; a reserve beyond the time left leaves
+    none; no limit stays none."""
+    deadline = parts_module.solve_deadline
+    assert deadline(100.0, 1000.0, 0.25, [], 3) == 325.0
+    assert deadline(100.0, 1000.0, 0.25, [20.0, 40.0], 3) == 302.5
+    assert deadline(100.0, 1000.0, 0.25, [20.0, 40.0], 0) == 325.0
+    assert deadline(100.0, 150.0, 0.5, [100.0], 2) == 100.0
+    assert deadline(100.0, None, 0.5, [100.0], 2) is None

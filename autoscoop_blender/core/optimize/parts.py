@@ -386,6 +386,20 @@ def _standing_too(problem: Problem, sites: I64) -> Iterator[None]:
         problem.space = space
 
 
+def solve_deadline(
+    now: float, parts_end: float | None, share: float, build_s: list[float], after: int
+) -> float | None:
+    """When a part's solve ends (``time.perf_counter()``; None: no limit): ``share`` of
+    the time to ``parts_end``, less what the ``after`` parts after it will wait for
+    their candidates, each as long as the builds so far (``build_s``, s) on average.
+    Without that reserve the builds all came out of the last parts' time: Town04's
+    take 26-70 s each, and its last two parts had no time for their sensors LPs."""
+    if parts_end is None:
+        return None
+    reserve = after * sum(build_s) / len(build_s) if build_s else 0.0
+    return now + max(0.0, parts_end - now - reserve) * share
+
+
 def whole_bound(
     problem: Problem,
     sensor_lines: list[Line],
@@ -677,6 +691,7 @@ def solve_in_parts(
     carry = 0  # goal the parts so far fell short of: the next part's to meet
     reach_m = max(m.range_m for m in problem.models)
     stopped = False
+    build_s: list[float] = []  # how long each part's candidates took to come, s
     # The parts end before the run does: what is left is the re-plan's (``rejoin``).
     parts_end = None if deadline is None else deadline - REJOIN_SHARE * max(0.0, deadline - t0)
 
@@ -757,6 +772,7 @@ def solve_in_parts(
             if part is None:  # stopped while it was built
                 stopped = True
                 break
+            build_s.append(time.perf_counter() - started)
             cands = part.cands
             log.info(
                 "part %d/%d: %d points, %d candidates (%d dominated left out), %d nonzeros "
@@ -782,9 +798,9 @@ def solve_in_parts(
             if left.goal > 0 and full.goal > 0:
                 # The rest of the time, shared by the parts left by their points.
                 share = open_points[k] / max(sum(open_points[k:]), 1)
-                part_deadline = None
-                if parts_end is not None:
-                    part_deadline = time.perf_counter() + (parts_end - time.perf_counter()) * share
+                part_deadline = solve_deadline(
+                    time.perf_counter(), parts_end, share, build_s, n_parts - 1 - k
+                )
                 # Its plans look for masts where its masts LP puts them, where the
                 # fewest new masts stand, and where the parts before stood theirs,
                 # which cost it nothing more.
