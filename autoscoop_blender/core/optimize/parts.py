@@ -110,8 +110,8 @@ SITE_USED = 1e-3
 SITE_POLISH_STEPS = 1000
 # The dual steps of a masts LP yield once per this much of them, s. They share the
 # main thread with the sensors LP's steps beside its solves, one of those (0.2-0.3 s
-# on a part of Town04) per yield: yielding after each step, 1,000 steps of 5 ms took
-# about 95 s of a Town04 part (2026-11-28).
+# on a part of Town04) per yield: yielding after each step, steps of 5 ms alone took
+# about 95 ms each in a Town04 run (2026-11-27/28).
 WALK_SLICE_S = 0.25
 # The share of the time limit the parts leave to the re-plan over the whole ground
 # (``rejoin_windows``): the parts of Town04 and of 12 tiles use all the time they are
