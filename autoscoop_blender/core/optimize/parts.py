@@ -239,7 +239,7 @@ def site_line(
     else:  # no solution: the sites of a greedy cover
         used = part.sites[greedy]
     polish = DualPolish(site_inst, cost)
-    if lp.pi is not None and len(lp.pi) == len(keep):
+    if lp.pi is not None:  # the sample's point duals
         start = spread_duals(lp.pi, square), lp.slope * len(keep) / max(site_inst.n_points, 1)
     else:  # cut short before its first solve: from nothing
         start = np.zeros(site_inst.n_points), 0.0
