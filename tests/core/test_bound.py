@@ -34,7 +34,7 @@ from autoscoop_blender.core.optimize.bound import (
     site_cover,
     split_cover_lp,
 )
-from autoscoop_blender.core.optimize.cover import CoverInstance
+from autoscoop_blender.core.optimize.cover import Cover, CoverInstance, complete
 from tests.core.test_lp import drain, instance, random_instance, steps
 
 ROWS = [[0, 1], [1, 2], [0, 2], [0], [3, 4], [4, 5], [3, 5]]
@@ -935,3 +935,38 @@ def test_closing_the_wait_cancels_the_solve():
     next(gen)
     gen.close()
     assert h.cancels == 1 and time.perf_counter() - start < 2.0
+
+
+def _no_duals(monkeypatch):
+    """Replace ``bound._run``: each solve ends at once with no solution, as HiGHS does
+    when its time limit (the deadline gone) comes before it has any duals."""
+
+    def run(h, stop=None, beside=None):
+        return bound.Solve.DONE
+        yield  # a generator, like the real one
+
+    monkeypatch.setattr(bound, "_run", run)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_an_lp_with_no_duals_still_proves_a_line_when_asked(monkeypatch, seed):
+    """The first solve ends with no duals: by default the LP proves nothing (a line of
+    0); with ``line_anyway`` its dual steps from nothing, towards the greedy cover's
+    cost (the initial columns, as a part starts), prove a line that holds at every
+    goal (below the full LP by linprog at each) and is above 0 at its own."""
+    rng = np.random.default_rng(seed)
+    inst = random_instance(rng)
+    cost = rng.uniform(0.5, 2.0, inst.matrix.shape[0])
+    group = np.arange(inst.matrix.shape[0])
+    every = np.arange(inst.matrix.shape[0], dtype=np.int64)
+    greedy = np.array(complete(Cover(inst), every, sensor_cost=cost).chosen, np.int64)
+    _no_duals(monkeypatch)
+    plain = drain(bound.cover_lp(inst, cost, group, greedy))
+    assert (plain.slope, plain.intercept, plain.bound) == (0.0, 0.0, 0.0)
+    sol = drain(bound.cover_lp(inst, cost, group, greedy, line_anyway=True))
+    assert sol.slope * inst.goal - sol.intercept > 0.0
+    assert sol.bound == pytest.approx(sol.slope * inst.goal - sol.intercept)
+    reach = len(np.unique(inst.matrix.indices))
+    for goal in range(1, reach + 1):
+        at = CoverInstance(inst.matrix, goal, inst.xy, need=inst.k)
+        assert sol.slope * goal - sol.intercept <= full_lp(at, cost) + 1e-9

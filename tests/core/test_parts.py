@@ -24,6 +24,7 @@ from autoscoop_blender.core.model.scene import Area, SceneModel
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA, SensorPose
 from autoscoop_blender.core.optimize import lp as lp_module
 from autoscoop_blender.core.optimize import parts as parts_module
+from autoscoop_blender.core.optimize import planner
 from autoscoop_blender.core.optimize.base import (
     FixedSensor,
     Solution,
@@ -158,6 +159,22 @@ def test_the_time_left_never_passes_the_runs_limit(small_parts):
             etas.append(p.eta_s)
             assert p.eta_s <= max(0.0, deadline - time.perf_counter()) + 1e-6
     assert etas  # parts were done and estimates given
+
+
+def test_the_re_plans_time_left_is_the_time_to_the_deadline(small_parts):
+    """Once every part is done the re-plan over the seams may go on to the run's
+    deadline, so that is what is left (the parts' rate, spent / 7 on Town04's eighth
+    part, grew with every second of the re-plan)."""
+    run = Run(road(), box_caster(WALL), PAPER_CAMERA, settings(rho=0.9, time_limit_s=600.0))
+    limit = planner.time_limit(run.problem.settings, run.problem.estimate.parts)
+    deadline = planner.search_deadline(run.problem.t0, limit)
+    seams = []
+    for p in run.steps():
+        if p.stage == "seams":
+            seams.append((p.eta_s, deadline - time.perf_counter()))
+    assert seams
+    for eta, left in seams:
+        assert left - 1.0 <= eta <= left + 1.0
 
 
 def test_a_stopped_run_keeps_the_parts_done_and_resume_finishes_it(small_parts):
@@ -663,11 +680,13 @@ def test_cheapest_counts_is_the_least_cost_of_whole_counts(seed):
 def test_a_parts_solve_leaves_time_for_the_builds_after_it():
     """900 s to the parts' end, a quarter of it this part's: 225 s with no build
     measured yet; builds of 20 and 40 s so far reserve 3 x 30 s for the three parts
-    after it, so (900 - 90) / 4 = 202.5 s; a reserve beyond the time left leaves
-    none; no limit stays none."""
+    after it, so (900 - 90) / 4 = 202.5 s; with parts so far 10 and 20 s past their
+    deadlines, 3 x (30 + 15) s: (900 - 135) / 4 = 191.25 s; a reserve beyond the
+    time left leaves none; no limit stays none."""
     deadline = parts_module.solve_deadline
     assert deadline(100.0, 1000.0, 0.25, [], 3) == 325.0
     assert deadline(100.0, 1000.0, 0.25, [20.0, 40.0], 3) == 302.5
+    assert deadline(100.0, 1000.0, 0.25, [20.0, 40.0], 3, [10.0, 20.0]) == 291.25
     assert deadline(100.0, 1000.0, 0.25, [20.0, 40.0], 0) == 325.0
     assert deadline(100.0, 150.0, 0.5, [100.0], 2) == 100.0
     assert deadline(100.0, None, 0.5, [100.0], 2) is None

@@ -69,7 +69,7 @@ import math
 import threading
 import time
 from collections.abc import Generator, Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, TypeVar
 
 import highspy
@@ -480,6 +480,7 @@ def cover_lp(
     stop: threading.Event | None = None,
     rel_gap: float = 0.0,
     interior: bool = False,
+    line_anyway: bool = False,
 ) -> Generator[LPProgress | None, None, LPSolution]:
     """The LP relaxation by column generation (see the module docstring).
 
@@ -488,8 +489,11 @@ def cover_lp(
     once the integer bound is final; rel_gap: stop once the bound is within this
     fraction of the LP's value; deadline: ``time.perf_counter()`` to stop at, and
     stop: an event to stop at once (the bound then holds, the LP is not complete; a
-    round cut short is dropped). Yields None while HiGHS works and an ``LPProgress``
-    after each round.
+    round cut short is dropped); line_anyway: when the deadline cuts the first solve
+    short before it has duals, ``DualPolish.MIN_STEPS`` dual steps from nothing,
+    towards the cost of ``initial``, still prove a line (a part that starts at the
+    parts' end: Town04's last had none, and its sensors counted 0 in the bound).
+    Yields None while HiGHS works and an ``LPProgress`` after each round.
     """
     matrix, n = inst.matrix, inst.n_points
     need = inst.k
@@ -554,7 +558,17 @@ def cover_lp(
         # Cut short by the time limit: the duals so far still give a Lagrangian bound
         # (if there are any), but the objective is no optimum to scale.
         optimal = h.getModelStatus() == highspy.HighsModelStatus.kOptimal
+        # Cut short in its first solve, asked for a line anyway: steps from the duals
+        # it has (none: from nothing), towards the initial columns' cost.
+        anyway = line_anyway and rounds == 1 and not optimal
+        anyway = anyway and not (stop is not None and stop.is_set())
+        target = float(cost[np.asarray(initial, dtype=np.int64)].sum())
         if not optimal and len(sol.row_dual) != n + 1:
+            if anyway:
+                for _ in polish.walk(np.zeros(n), 0.0, target, DualPolish.MIN_STEPS):
+                    yield None
+                at, slope, intercept = polish.line()
+                last = replace(last, bound=max(0.0, at), slope=slope, intercept=intercept)
             return last
         value = float(h.getInfo().objective_function_value) if optimal else math.inf
         row_dual = np.maximum(np.asarray(sol.row_dual), 0.0)  # >= 0 up to round-off
@@ -578,6 +592,9 @@ def cover_lp(
         # 20 steps before it cost two_routes 25 s of its 107 s LP. The best point of
         # every walk so far gives the bound.
         walk = polish.walk(duals, sigma, value) if optimal else None
+        if anyway:
+            for _ in polish.walk(duals, sigma, target, DualPolish.MIN_STEPS):
+                yield None
         best, line = polish.better(best, line)
         # With k > 1 (x_c <= 1) the restricted LP's value holds the bounds' duals too:
         # not a bound scaled, and ``mast_aware_bound`` takes the point duals' ``total``.

@@ -421,7 +421,7 @@ def prove_bound(
         # as ``split_cover_lp`` solves its parts.
         lp_gen = cover_lp(
             part.lp_inst, ones, cands.position, np.array(start, dtype=np.int64), integral=False,
-            deadline=deadline, stop=stop, rel_gap=PART_REL_GAP,
+            deadline=deadline, stop=stop, rel_gap=PART_REL_GAP, line_anyway=True,
         )  # fmt: skip
     elif inst.xy is not None and n_parts > 1:
         split = parts_of(inst.xy, n_parts)

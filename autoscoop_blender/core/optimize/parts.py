@@ -387,17 +387,27 @@ def _standing_too(problem: Problem, sites: I64) -> Iterator[None]:
 
 
 def solve_deadline(
-    now: float, parts_end: float | None, share: float, build_s: list[float], after: int
+    now: float,
+    parts_end: float | None,
+    share: float,
+    build_s: list[float],
+    after: int,
+    over_s: list[float] | None = None,
 ) -> float | None:
     """When a part's solve ends (``time.perf_counter()``; None: no limit): ``share`` of
-    the time to ``parts_end``, less what the ``after`` parts after it will wait for
-    their candidates, each as long as the builds so far (``build_s``, s) on average.
-    Without that reserve the builds all came out of the last parts' time: Town04's
-    take 26-70 s each, and its last two parts had no time for their sensors LPs."""
+    the time to ``parts_end``, less what each of the ``after`` parts after it will
+    spend outside its own solve's share: waiting for its candidates, as long as the
+    builds so far (``build_s``, s) on average, and working past its deadline, as
+    long as the parts so far did (``over_s``, s; the masts LP's lines either side
+    and the sensors' fixing come after the part's plan). Without that reserve it
+    all came out of the last parts' time: Town04's builds take 25-70 s each and
+    its parts ran 12-32 s past their deadlines, so its last part had 14 s and no
+    sensors LP."""
     if parts_end is None:
         return None
-    reserve = after * sum(build_s) / len(build_s) if build_s else 0.0
-    return now + max(0.0, parts_end - now - reserve) * share
+    each = sum(build_s) / len(build_s) if build_s else 0.0
+    each += sum(over_s) / len(over_s) if over_s else 0.0
+    return now + max(0.0, parts_end - now - after * each) * share
 
 
 def whole_bound(
@@ -692,6 +702,7 @@ def solve_in_parts(
     reach_m = max(m.range_m for m in problem.models)
     stopped = False
     build_s: list[float] = []  # how long each part's candidates took to come, s
+    over_s: list[float] = []  # how long each part's work went on past its deadline, s
     # The parts end before the run does: what is left is the re-plan's (``rejoin``).
     parts_end = None if deadline is None else deadline - REJOIN_SHARE * max(0.0, deadline - t0)
 
@@ -718,6 +729,8 @@ def solve_in_parts(
         done = sum(open_points[: k + finished])
         spent = time.perf_counter() - t0
         eta = spent * (total_open - done) / done if done else None
+        if stage == "seams":  # every part is done; the re-plan ends by the deadline
+            eta = None if deadline is None else math.inf
         if eta is not None and deadline is not None:  # the run ends by its deadline
             eta = min(eta, max(0.0, deadline - t0 - spent))
         masts = len({(f.pose.x, f.pose.y) for f in solution.sensors[first:]})
@@ -799,7 +812,7 @@ def solve_in_parts(
                 # The rest of the time, shared by the parts left by their points.
                 share = open_points[k] / max(sum(open_points[k:]), 1)
                 part_deadline = solve_deadline(
-                    time.perf_counter(), parts_end, share, build_s, n_parts - 1 - k
+                    time.perf_counter(), parts_end, share, build_s, n_parts - 1 - k, over_s
                 )
                 # Its plans look for masts where its masts LP puts them, where the
                 # fewest new masts stand, and where the parts before stood theirs,
@@ -855,6 +868,8 @@ def solve_in_parts(
                         break
                     sensor = fix_candidate(problem, solution, cands, c)
                     yield where(solution.progress("fixed", rho, fixed=sensor), k, "fixing")
+                if part_deadline is not None:
+                    over_s.append(max(0.0, time.perf_counter() - part_deadline))
             got = int(np.count_nonzero(solution.covered[points])) - have
             carry = max(0, target - got)
             del part, cands, full, left  # the part's matrix goes before the next part's is built
