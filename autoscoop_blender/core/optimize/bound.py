@@ -490,9 +490,10 @@ def cover_lp(
     fraction of the LP's value; deadline: ``time.perf_counter()`` to stop at, and
     stop: an event to stop at once (the bound then holds, the LP is not complete; a
     round cut short is dropped); line_anyway: when the deadline cuts the first solve
-    short before it has duals, ``DualPolish.MIN_STEPS`` dual steps from nothing,
-    towards the cost of ``initial``, still prove a line (a part that starts at the
-    parts' end: Town04's last had none, and its sensors counted 0 in the bound).
+    short of optimal duals, ``DualPolish.MIN_STEPS`` dual steps from the duals it
+    has, or from nothing, towards the cost of ``initial``, still prove a line (a part
+    that starts at the parts' end: Town04's last had none, and its sensors counted 0
+    in the bound).
     Yields None while HiGHS works and an ``LPProgress`` after each round.
     """
     matrix, n = inst.matrix, inst.n_points
@@ -540,6 +541,7 @@ def cover_lp(
             _add_columns(h, rows, cost[cols], upper, rows.data)
 
     add(np.unique(np.asarray(initial, dtype=np.int64)))
+    target = float(cost[np.asarray(initial, dtype=np.int64)].sum())  # for ``line_anyway``
     polish = DualPolish(inst, cost)
     walk: Iterator[None] | None = None
     best, line = 0.0, (0.0, 0.0)
@@ -562,7 +564,6 @@ def cover_lp(
         # it has (none: from nothing), towards the initial columns' cost.
         anyway = line_anyway and rounds == 1 and not optimal
         anyway = anyway and not (stop is not None and stop.is_set())
-        target = float(cost[np.asarray(initial, dtype=np.int64)].sum())
         if not optimal and len(sol.row_dual) != n + 1:
             if anyway:
                 for _ in polish.walk(np.zeros(n), 0.0, target, DualPolish.MIN_STEPS):
