@@ -57,9 +57,10 @@ def _brute_force(inst, mast_cost, standing):
     return best
 
 
-def _direct_lp(inst, masts, standing):
+def _direct_lp(inst, masts, standing, tight=False):
     """S_LP(masts) by scipy's linprog over every row and column at once (variables:
-    x (C), u (N), y (sites))."""
+    x (C), u (N), y (sites)); ``tight``: with the site rows, k_n u_n <= sum_s
+    min(site s's candidates covering n, k_n) y_s."""
     a = inst.matrix.toarray().astype(float)
     n_cands, n_points = a.shape
     n_sites = len(standing)
@@ -82,6 +83,12 @@ def _direct_lp(inst, masts, standing):
         row = np.zeros(n_var)
         row[:n_cands] = inst.site_of == s
         row[n_cands + n_points + s] = -inst.cap
+        rows.append(row), rhs.append(0.0)
+    for n in range(n_points * tight):  # k_n u_n - sum_s b_ns y_s <= 0
+        row = np.zeros(n_var)
+        row[n_cands + n] = inst.k[n]
+        for s in range(n_sites):
+            row[n_cands + n_points + s] = -min(a[inst.site_of == s, n].sum(), inst.k[n])
         rows.append(row), rhs.append(0.0)
     row = np.zeros(n_var)
     row[n_cands + n_points :] = ~standing
@@ -142,6 +149,26 @@ def test_a_sensor_needs_its_whole_mast():
     assert solved[0].value == pytest.approx(4.0) and solved[0].at(1) == pytest.approx(4.0, abs=1e-5)
 
 
+def test_the_site_rows_keep_a_half_open_mast_from_covering_a_point_twice():
+    """Points 0-2, cap 2. Site 0 holds candidates seeing {0} and {0, 1}; site 1 those
+    seeing {0, 2} and {1, 2}. On one mast only site 1 covers all three, with both its
+    candidates: 2 sensors. The LP without the site rows opens each site half and
+    takes {0, 1}, {0, 2} and {1, 2} at 1/2: every point covered once, 1.5 sensors. With
+    them a point counts at most the open share of the sites that see it: point 2 needs
+    site 1 whole, and the LP is the integer 2."""
+    inst = _instance([[0], [0, 1], [0, 2], [1, 2]], 3, [0, 0, 1, 1], goal=3, cap=2)
+    standing = np.zeros(2, bool)
+    for tight, value in ((False, 1.5), (True, 2.0)):
+        go = joint.masts_sensors_lp(
+            inst, np.ones(4), inst.site_of, standing, 1, np.zeros(0, np.int64),
+            np.zeros(0, np.int64), tight=tight,
+        )  # fmt: skip
+        lp = steps(go)[0]
+        assert lp.complete and lp.value == pytest.approx(value)
+        assert lp.at(1) == pytest.approx(value, abs=1e-5)
+        assert _direct_lp(inst, 1, standing, tight) == pytest.approx(value)
+
+
 def test_a_point_joins_while_short_of_its_k(monkeypatch):
     """Points 0 and 1 each need 2 sensors: candidate 0 sees both, 1 sees point 0 and 2
     sees point 1 (one site, cap 3): all three are needed. With one row a round, point
@@ -179,18 +206,18 @@ def instances(draw):
 
 
 @settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(instances(), st.sampled_from([1, 200]), st.sampled_from([1, 500]))
-def test_the_joint_bound_never_exceeds_the_optimum(case, per_round, rows_per_round):
-    """On random instances with a cap, k = 1 or 2, masts standing: the joint bound is
-    at most the brute-force optimum; each LP, solved to the end, is S_LP(m) as
-    linprog finds it over the whole model; and its duals bound S_LP at every m'. One
-    column or one row a round makes each round's pricing count."""
+@given(instances(), st.sampled_from([1, 200]), st.sampled_from([1, 500]), st.booleans())
+def test_the_joint_bound_never_exceeds_the_optimum(case, per_round, rows_per_round, tight):
+    """On random instances with a cap, k = 1 or 2, masts standing, with the site rows
+    or without: the joint bound is at most the brute-force optimum; each LP, solved to
+    the end, is S_LP(m) as linprog finds it over the whole model; and its duals bound
+    S_LP at every m'. One column or one row a round makes each round's pricing count."""
     inst, standing, mast_cost = case
     best = _brute_force(inst, mast_cost, standing)
     solved = []
     go = joint.joint_bound(
         inst, inst.site_of, standing, 0, mast_cost, 1.0, 0.0,
-        np.zeros(0, np.int64), np.zeros(0, np.int64), solved=solved,
+        np.zeros(0, np.int64), np.zeros(0, np.int64), solved=solved, tight=tight,
     )  # fmt: skip
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(joint, "PER_ROUND", per_round)
@@ -199,9 +226,9 @@ def test_the_joint_bound_never_exceeds_the_optimum(case, per_round, rows_per_rou
     assert bound <= best + 1e-6
     for lp in solved:
         assert lp.complete
-        direct = _direct_lp(inst, lp.masts, standing)
+        direct = _direct_lp(inst, lp.masts, standing, tight)
         if math.isfinite(direct):
             assert lp.value == pytest.approx(direct, abs=1e-5)
             assert lp.at(lp.masts) == pytest.approx(direct, abs=1e-5)
         for m in range(len(lp.sensors)):
-            assert lp.at(m) <= _direct_lp(inst, m, standing) + 1e-6
+            assert lp.at(m) <= _direct_lp(inst, m, standing, tight) + 1e-6

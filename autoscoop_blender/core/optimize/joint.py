@@ -35,6 +35,17 @@ holds for every m'), and the least of these over m' >= M is the **joint bound**
 (``joint_cost_bound``). On the instance where the cap forces a second mast that
 neither bound sees (``tests/core/test_joint.py``) it is the optimum.
 
+**Site rows (``tight``).** A point covered by a plan is seen from one of its masts,
+so ``sum_s b_ns y_s >= k_n u_n`` holds too (b_ns: min(site s's candidates seeing n,
+k_n), as in ``site_cover``). Without these rows a site open at 1/2 may carry two
+candidates at 1/2 that both see a point, which counts it covered once; with them it
+counts 1/2. With their duals rho >= 0 the per-site term becomes ``phi_s + (B^T
+rho)_s`` and a point's ``k_n pi_n`` becomes ``k_n (pi_n + rho_n)``: the same argument,
+so f still bounds every m'. They join as the LP's y leaves a point short, and a
+site may join for them alone. On two_routes at m = 13 they lift S_LP from 31.02 to
+32.05, and the cost bound from 71 to 72, for 2.5-3 x the LP's time (150-180 s
+against 58 s, 2026-11-28): an option (``tight_bound``), not the default.
+
 **Row and column generation.** The LP at one m is solved from the sensors LP's
 columns and the points its duals price (on two_routes 4,045 of 16,555): a point
 without its row counts as covered (the goal less those points: a relaxation). Each
@@ -112,6 +123,21 @@ def site_excess(
     return excess, phi
 
 
+def site_rows(inst: CoverInstance, site_of: I64, n_sites: int) -> sparse.csr_matrix:
+    """(points, sites): what an open site adds to a point's cover, min(its candidates
+    covering the point, k) (1 with k = 1): a plan's sensors at a site are among them."""
+    m = inst.matrix
+    pick = sparse.csr_matrix(
+        (np.ones(len(site_of)), (site_of, np.arange(len(site_of)))), shape=(n_sites, m.shape[0])
+    )
+    seen = sparse.csr_matrix((np.ones(m.nnz), m.indices, m.indptr), shape=m.shape)
+    by_site = (pick @ seen).tocsr()
+    by_site.data = (
+        np.minimum(by_site.data, inst.k[by_site.indices]) if inst.multi else by_site.data * 0 + 1
+    )
+    return sparse.csr_matrix(by_site.T)
+
+
 def _top_per_site(score: F64, site_of: I64, cap: int) -> I64:
     """The indices of the ``cap`` largest ``score`` at each site (of ``site_of``)."""
     order = np.lexsort((-score, site_of))
@@ -163,18 +189,35 @@ def joint_cost_bound(
 class _Model:
     """The restricted LP in HiGHS, with where each point, site and candidate sits in it.
 
-    Rows: 0 the goal, 1 the masts' budget, then the points', the sites' caps and the
-    candidates' links as they join. Columns: 0 an artificial slack on the goal row
-    (so the restricted LP is always feasible: a budget too small for the goal makes it
-    expensive, and the duals then bound that m' high), then the u, y and x."""
+    Rows: 0 the goal, 1 the masts' budget, then the points', the sites' caps, the
+    candidates' links and (``tight``) the points' site rows as they join. Columns: 0
+    an artificial slack on the goal row (so the restricted LP is always feasible: a
+    budget too small for the goal makes it expensive, and the duals then bound that
+    m' high), then the u, y and x."""
 
     def __init__(
-        self, inst: CoverInstance, cost: F64, site_of: I64, standing: NDArray[np.bool_], m: int
+        self,
+        inst: CoverInstance,
+        cost: F64,
+        site_of: I64,
+        standing: NDArray[np.bool_],
+        m: int,
+        tight: bool = False,
     ) -> None:
         self.inst, self.cost, self.site_of, self.standing = inst, cost, site_of, standing
         self.cap = inst.cap
         self.by_point = sparse.csr_matrix(inst.matrix.T)
         n_cands, n_points = inst.matrix.shape
+        # (points, sites) and (sites, points): what an open site adds to a point (the
+        # site rows, ``tight``; ``site_cover``'s rows)
+        self.sites_of_point = (
+            site_rows(inst, site_of, len(standing))
+            if tight
+            else sparse.csr_matrix((n_points, len(standing)))
+        )
+        self.points_of_site = sparse.csr_matrix(self.sites_of_point.T)
+        self.site_row_of = np.full(n_points, -1, dtype=np.int64)
+        self.u_of = np.full(n_points, -1, dtype=np.int64)
         self.row_of = np.full(n_points, -1, dtype=np.int64)
         self.col_of = np.full(n_cands, -1, dtype=np.int64)
         self.linked = np.zeros(n_cands, dtype=bool)  # has its link row
@@ -223,22 +266,25 @@ class _Model:
                        rows.indptr[:-1].astype(np.int32), rows.indices.astype(np.int32),
                        rows.data.astype(float))  # fmt: skip
         self.row_of[points] = first + np.arange(k)
-        # u_n: -k_n in its row, 1 in the goal row (row 0).
+        # u_n: -k_n in its row, 1 in the goal row (row 0); its site row joins when
+        # the LP's y leaves it short (``add_site_rows``).
         entries = sparse.csc_matrix(
             (np.concatenate([-inst.k[points].astype(float), np.ones(k)]),
              (np.concatenate([first + np.arange(k), np.zeros(k, np.int64)]),
               np.tile(np.arange(k), 2))),
             shape=(self.h.getNumRow(), k),
         )  # fmt: skip
+        self.u_of[points] = self.h.getNumCol() + np.arange(k)
         self._cols(np.zeros(k), entries)
         self.outside -= k
         self.h.changeRowBounds(0, float(self.inst.goal - self.outside), highspy.kHighsInf)
         return k
 
-    def _add_sites(self, sites: I64) -> None:
+    def add_sites(self, sites: I64) -> int:
+        """Columns y for ``sites`` (not in the LP yet), with their cap rows."""
         sites = np.unique(sites[self.y_of[sites] < 0])
         if not len(sites):
-            return
+            return 0
         k = len(sites)
         row, val = [], []
         if self.cap is not None:
@@ -250,11 +296,17 @@ class _Model:
         row.append(np.ones(int(budget.sum()), np.int64))
         val.append(np.ones(int(budget.sum())))
         col = [np.arange(k)] * (self.cap is not None) + [np.flatnonzero(budget)]
+        sub = self.points_of_site[sites].tocoo()
+        inside = self.site_row_of[sub.col] >= 0
+        row.append(self.site_row_of[sub.col[inside]])
+        val.append(sub.data[inside].astype(float))
+        col.append(sub.row[inside])
         entries = sparse.csc_matrix(
             (np.concatenate(val), (np.concatenate(row), np.concatenate(col))),
             shape=(self.h.getNumRow(), k),
         )
         self.y_of[sites] = self._cols(np.zeros(k), entries) + np.arange(k)
+        return k
 
     def add_columns(self, cands: I64) -> int:
         """Columns for ``cands`` (not in the LP yet), and their sites' y and cap rows
@@ -263,7 +315,7 @@ class _Model:
         if not len(cands):
             return 0
         k = len(cands)
-        self._add_sites(self.site_of[cands])
+        self.add_sites(self.site_of[cands])
         sub = self.inst.matrix[cands].tocoo()
         inside = self.row_of[sub.col] >= 0
         row = [self.row_of[sub.col[inside]]]
@@ -278,6 +330,34 @@ class _Model:
             shape=(self.h.getNumRow(), k),
         )
         self.col_of[cands] = self._cols(self.cost[cands], entries) + np.arange(k)
+        return k
+
+    def add_site_rows(self, most: int) -> int:
+        """Site rows ``sum_s b_ns y_s - k_n u_n >= 0`` for at most ``most`` points
+        (with a cover row) whose u the LP's y leaves short, the shortest first."""
+        values = np.asarray(self.h.getSolution().col_value)
+        points = np.flatnonzero((self.u_of >= 0) & (self.site_row_of < 0))
+        short = self.inst.k[points] * values[self.u_of[points]] - np.asarray(
+            self.sites_of_point[points] @ self.y(), dtype=float
+        )
+        keep = short > 1e-7
+        points = points[keep][np.argsort(-short[keep], kind="stable")][:most]
+        if not len(points):
+            return 0
+        k = len(points)
+        sub = self.sites_of_point[points].tocoo()
+        inside = self.y_of[sub.col] >= 0
+        rows = sparse.csr_matrix(
+            (np.concatenate([sub.data[inside], -self.inst.k[points].astype(float)]),
+             (np.concatenate([sub.row[inside], np.arange(k)]),
+              np.concatenate([self.y_of[sub.col[inside]], self.u_of[points]]))),
+            shape=(k, self.h.getNumCol()),
+        )  # fmt: skip
+        first = self.h.getNumRow()
+        self.h.addRows(k, np.zeros(k), np.full(k, highspy.kHighsInf), rows.nnz,
+                       rows.indptr[:-1].astype(np.int32), rows.indices.astype(np.int32),
+                       rows.data.astype(float))  # fmt: skip
+        self.site_row_of[points] = first + np.arange(k)
         return k
 
     def add_links(self) -> int:
@@ -301,25 +381,36 @@ class _Model:
         self.linked[cands] = True
         return k
 
-    def duals(self) -> tuple[F64, float, float, F64]:
+    def duals(self) -> tuple[F64, F64, float, float, F64]:
         """(pi (N,), sigma, the budget's dual, each site's cap dual (sites,)), all >= 0
         (0 for rows not in the LP)."""
         row_dual = np.asarray(self.h.getSolution().row_dual)
         pi = np.zeros(len(self.row_of))
         has = self.row_of >= 0
         pi[has] = np.maximum(row_dual[self.row_of[has]], 0.0)
+        rho = np.zeros(len(self.row_of))
+        sited = self.site_row_of >= 0
+        rho[sited] = np.maximum(row_dual[self.site_row_of[sited]], 0.0)
         beta = np.zeros(len(self.cap_row_of))
         on = self.cap_row_of >= 0
         beta[on] = np.maximum(-row_dual[self.cap_row_of[on]], 0.0)
-        return pi, max(float(row_dual[0]), 0.0), max(-float(row_dual[1]), 0.0), beta
+        return pi, rho, max(float(row_dual[0]), 0.0), max(-float(row_dual[1]), 0.0), beta
+
+    def _values(self, col_of: I64) -> F64:
+        """The LP's value of each column ``col_of`` names (0 where it is -1: not in it)."""
+        values = np.asarray(self.h.getSolution().col_value)
+        out = np.zeros(len(col_of))
+        has = col_of >= 0
+        out[has] = values[col_of[has]]
+        return out
+
+    def y(self) -> F64:
+        """(sites,) every site's value in the LP (0 outside it)."""
+        return self._values(self.y_of)
 
     def x(self) -> F64:
         """(C,) every candidate's value in the LP (0 outside it)."""
-        values = np.asarray(self.h.getSolution().col_value)
-        x = np.zeros(len(self.col_of))
-        has = self.col_of >= 0
-        x[has] = values[self.col_of[has]]
-        return x
+        return self._values(self.col_of)
 
 
 def masts_sensors_lp(
@@ -333,10 +424,12 @@ def masts_sensors_lp(
     deadline: float | None = None,
     stop: threading.Event | None = None,
     enough: float = math.inf,
+    tight: bool = False,
 ) -> Generator[None, None, MastsSensors]:
     """The LP of the fewest sensors on at most ``masts`` new masts (see the module
-    docstring), by rows and columns, from ``columns`` (candidates, e.g. the sensors
-    LP's) and ``points`` (e.g. those its duals price). cost: (C,) > 0; standing:
+    docstring; with its site rows when ``tight``), by rows and columns, from
+    ``columns`` (candidates, e.g. the sensors LP's) and ``points`` (e.g. those its
+    duals price). cost: (C,) > 0; standing:
     (sites,) where a mast stands already. Stops when nothing is left to add, at
     ``deadline`` (``time.perf_counter()``), at ``stop``, or once the bound at
     ``masts`` reaches ``enough`` (more would prove nothing the caller needs: the
@@ -345,7 +438,7 @@ def masts_sensors_lp(
     n_sites = len(standing)
     cap = _cap(inst, site_of)
     at = min(masts, int(np.count_nonzero(~standing)))  # where the curve holds ``masts``
-    lp = _Model(inst, cost, site_of, standing, masts)
+    lp = _Model(inst, cost, site_of, standing, masts, tight)
     lp.add_points(np.asarray(points, dtype=np.int64))
     lp.add_columns(np.asarray(columns, dtype=np.int64))
     best: F64 | None = None
@@ -359,9 +452,10 @@ def masts_sensors_lp(
             break
         rounds += 1
         value = float(lp.h.getInfo().objective_function_value)
-        pi, sigma, mu, beta = lp.duals()
+        pi, rho, sigma, mu, beta = lp.duals()
         excess, phi = site_excess(inst, cost, site_of, n_sites, pi)
-        curve = dual_curve(inst, phi, standing, pi, sigma)
+        phi = phi + np.asarray(lp.points_of_site @ rho, dtype=float)
+        curve = dual_curve(inst, phi, standing, pi + rho, sigma)
         if best is None or curve[at] > best[at]:
             best = curve
         if best[at] >= enough:
@@ -386,10 +480,16 @@ def masts_sensors_lp(
         at_new = at_new[_top_per_site(excess[at_new], site_of[at_new], cap)]
         # Rows: the points the LP's x leaves short of their k (no row yet).
         covered = np.asarray(lp.by_point @ lp.x(), dtype=float)
+        if tight:  # short of their k in the sites' cover too
+            covered = np.minimum(covered, np.asarray(lp.sites_of_point @ lp.y(), dtype=float))
         short = np.flatnonzero((lp.row_of < 0) & (covered < inst.k - 1e-6))
         short = short[np.argsort(covered[short] - inst.k[short], kind="stable")]
         added = lp.add_points(short[:ROWS_PER_ROUND]) + lp.add_links()
         added += lp.add_columns(np.concatenate([joins, at_new]))
+        if tight:
+            # A site may join for its site rows' duals alone, before any candidate of
+            # it prices in (the LP may price a point in either of its two rows).
+            added += lp.add_site_rows(ROWS_PER_ROUND) + lp.add_sites(new_sites)
         if added == 0:
             complete = True
             break
@@ -418,13 +518,15 @@ def joint_bound(
     solved: list[MastsSensors] | None = None,
     deadline: float | None = None,
     stop: threading.Event | None = None,
+    tight: bool = False,
 ) -> Generator[None, None, float]:
     """The joint bound on a plan's cost, ``mast_cost`` a new mast and ``sensor_price``
     a sensor (see the module docstring): the LP of the fewest sensors on at most m
     masts, solved at the m where the bound is least (``joint_cost_bound``; ``solved``:
     those solved already, and it gets the new ones) until that m is solved (its value
     there is then final), as far as the ``deadline`` and ``stop`` allow, and while
-    the best plan's cost ``best`` is above it. fewest: a lower bound on the new masts;
+    the best plan's cost ``best`` is above it; with the site rows when ``tight``.
+    fewest: a lower bound on the new masts;
     sensors: on the sensors; columns, points: where each LP starts
     (``masts_sensors_lp``)."""
     solved = [] if solved is None else solved
@@ -445,6 +547,6 @@ def joint_bound(
             break
         solved.append((yield from masts_sensors_lp(
             inst, ones, site_of, standing, m, columns, points, deadline, stop,
-            enough_sensors(best, mast_cost, sensor_price, m),
+            enough_sensors(best, mast_cost, sensor_price, m), tight,
         )))  # fmt: skip
     return least()[0]

@@ -549,6 +549,7 @@ class _JointStart:
                 self.inst, np.ones(len(self.cands)), self.cands.position,
                 self.problem.space.standing, m, columns, np.flatnonzero(duals > 0),
                 self.deadline, self.stop, enough_sensors(self.best, s.mast_cost, price, m),
+                s.tight_bound,
             )))  # fmt: skip
         return value
 
@@ -601,7 +602,7 @@ def _joint_bound(
     joint = yield from joint_bound(
         inst, cands.position, problem.space.standing, plan_bound.masts or 0, s.mast_cost,
         float(sensor_price(problem, cands)), float(plan_bound.sensors), lp.columns,
-        np.flatnonzero(lp.pi > 0), best, solved, deadline, stop,
+        np.flatnonzero(lp.pi > 0), best, solved, deadline, stop, s.tight_bound,
     )  # fmt: skip
     return dataclasses.replace(plan_bound, joint=max(plan_bound.joint, joint))
 
