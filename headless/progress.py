@@ -95,7 +95,7 @@ class ProgressBar:
 
     def _log(self, p: Progress) -> None:
         now = self.clock()
-        print(progress_text(p, now - self.t0), file=self.stream, flush=True)
+        log_line(self.stream, progress_text(p, now - self.t0))
         self._last = now
 
     def _ticks(self, tick_s: float) -> None:
@@ -106,6 +106,14 @@ class ProgressBar:
         with self._lock:  # no line from the thread after this one
             self._closed.set()
         end_line(self.stream)
+
+
+def log_line(stream, text: str) -> None:
+    """``text`` and its newline in one write: ``print`` writes them apart, and an
+    interrupt's last line (``interrupts.last_line``, from a signal handler or the
+    watchdog thread) came between the two, at the end of a progress line in a CI log."""
+    stream.write(text + "\n")
+    stream.flush()
 
 
 def end_line(stream) -> None:
@@ -135,7 +143,7 @@ class StageLine:
             print("\r" + line + "\033[K", end="", file=self.stream, flush=True)
             ProgressBar.drawing = True
         elif now - self._last >= self.log_interval:
-            print(line, file=self.stream, flush=True)
+            log_line(self.stream, line)
             self._last = now
 
     def close(self) -> None:

@@ -132,6 +132,31 @@ def test_between_reports_the_latest_facts_come_again():
     assert len(log.getvalue().splitlines()) == 3
 
 
+class Writes(io.StringIO):
+    """A log that keeps each write apart."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.writes: list[str] = []
+
+    def write(self, text: str) -> int:
+        self.writes.append(text)
+        return super().write(text)
+
+
+def test_a_log_line_comes_whole_in_one_write():
+    """An interrupt's last line is written from a signal handler or the watchdog
+    thread: between a line's text and its newline it ended up at the end of the
+    progress line ("... | 2 sinterrupted: ..."). A line and its newline are one
+    write, so another write comes before it or after it."""
+    clock, log = Clock(), Writes()
+    bar = ProgressBar(log, t0=clock.now, clock=clock, tick_s=None)
+    bar.update(LP)
+    clock.now += 6.0
+    bar.tick()
+    assert log.writes == [progress_text(LP, 0.0) + "\n", progress_text(LP, 6.0) + "\n"]
+
+
 def test_the_thread_keeps_a_log_going():
     log = io.StringIO()
     bar = ProgressBar(log, log_interval_s=0.2, tick_s=0.05)
