@@ -922,6 +922,27 @@ class SiteSolution:
         return sets
 
 
+def site_matrix(inst: CoverInstance, site_of: I64, n_sites: int) -> sparse.csr_matrix:
+    """(n_sites, points), float64, indices sorted: what an open site adds to a point's
+    cover. Site s covers point n when any candidate at s (``site_of``: (C,)) does;
+    with k > 1 it adds up to min(its candidates covering n, k_n) (every plan's
+    sensors there are among those candidates); with k = 1, 1."""
+    m = inst.matrix
+    # (Counted in float32, exact for these counts: a float64 copy of a Town01 part's
+    # 31 M entries would be 0.25 GB more at the run's peak.)
+    one = np.float32
+    pick = sparse.csr_matrix(
+        (np.ones(len(site_of), one), (site_of, np.arange(len(site_of)))),
+        shape=(n_sites, m.shape[0]),
+    )
+    seen = sparse.csr_matrix((np.ones(m.nnz, one), m.indices, m.indptr), shape=m.shape)
+    sites = (pick @ seen).tocsr().astype(np.float64)
+    sites.sort_indices()
+    k = inst.k[sites.indices]
+    sites.data = np.minimum(sites.data, k) if inst.multi else np.ones(sites.nnz)
+    return sites
+
+
 def site_cover(
     inst: CoverInstance,
     site_of: I64,
@@ -938,21 +959,8 @@ def site_cover(
     is found. standing: (n_sites,) sites where a mast stands already: they cost
     nothing, so the bound is on the new masts.
     """
-    m = inst.matrix
-    # Site s covers point n when any candidate at s does.
-    # (In float32, exact for these counts: a float64 copy of a Town01 part's 31 M
-    # entries would be 0.25 GB more at the run's peak.)
-    one = np.float32
-    pick = sparse.csr_matrix(
-        (np.ones(len(site_of), one), (site_of, np.arange(len(site_of)))),
-        shape=(n_sites, m.shape[0]),
-    )
-    seen = sparse.csr_matrix((np.ones(m.nnz, one), m.indices, m.indptr), shape=m.shape)
-    sites = (pick @ seen).tocsr().astype(np.float64)
-    # With k > 1 an open site adds up to min(its candidates covering n, k_n) to point n
-    # (every plan's sensors there are among those candidates); with k = 1, 1.
+    sites = site_matrix(inst, site_of, n_sites)
     multi = inst.multi
-    sites.data = np.minimum(sites.data, inst.k[sites.indices]) if multi else np.ones(sites.nnz)
     # Points seen from the same sites are one row (two_routes: 16,555 points, 8,310 rows;
     # the MILP took 5 s instead of 19 s).
     merged = MergedPoints.of(sites, inst.k)

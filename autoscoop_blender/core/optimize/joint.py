@@ -74,7 +74,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import sparse
 
-from .bound import SAFETY, Solve, _add_columns, _le_zero_rows, _new_highs, _run
+from .bound import SAFETY, Solve, _add_columns, _le_zero_rows, _new_highs, _run, site_matrix
 from .cover import CoverInstance
 
 F64 = NDArray[np.float64]
@@ -121,21 +121,6 @@ def site_excess(
     top = _top_per_site(excess, site_of, _cap(inst, site_of))
     phi = np.bincount(site_of[top], weights=excess[top], minlength=n_sites).astype(float)
     return excess, phi
-
-
-def site_rows(inst: CoverInstance, site_of: I64, n_sites: int) -> sparse.csr_matrix:
-    """(points, sites): what an open site adds to a point's cover, min(its candidates
-    covering the point, k) (1 with k = 1): a plan's sensors at a site are among them."""
-    m = inst.matrix
-    pick = sparse.csr_matrix(
-        (np.ones(len(site_of)), (site_of, np.arange(len(site_of)))), shape=(n_sites, m.shape[0])
-    )
-    seen = sparse.csr_matrix((np.ones(m.nnz), m.indices, m.indptr), shape=m.shape)
-    by_site = (pick @ seen).tocsr()
-    by_site.data = (
-        np.minimum(by_site.data, inst.k[by_site.indices]) if inst.multi else by_site.data * 0 + 1
-    )
-    return sparse.csr_matrix(by_site.T)
 
 
 def _top_per_site(score: F64, site_of: I64, cap: int) -> I64:
@@ -211,7 +196,7 @@ class _Model:
         # (points, sites) and (sites, points): what an open site adds to a point (the
         # site rows, ``tight``; ``site_cover``'s rows)
         self.sites_of_point = (
-            site_rows(inst, site_of, len(standing))
+            sparse.csr_matrix(site_matrix(inst, site_of, len(standing)).T)
             if tight
             else sparse.csr_matrix((n_points, len(standing)))
         )
@@ -382,8 +367,8 @@ class _Model:
         return k
 
     def duals(self) -> tuple[F64, F64, float, float, F64]:
-        """(pi (N,), sigma, the budget's dual, each site's cap dual (sites,)), all >= 0
-        (0 for rows not in the LP)."""
+        """(pi (N,), rho (N,) the site rows', sigma, the budget's dual, each site's cap
+        dual (sites,)), all >= 0 (0 for rows not in the LP)."""
         row_dual = np.asarray(self.h.getSolution().row_dual)
         pi = np.zeros(len(self.row_of))
         has = self.row_of >= 0
@@ -429,8 +414,7 @@ def masts_sensors_lp(
     """The LP of the fewest sensors on at most ``masts`` new masts (see the module
     docstring; with its site rows when ``tight``), by rows and columns, from
     ``columns`` (candidates, e.g. the sensors LP's) and ``points`` (e.g. those its
-    duals price). cost: (C,) > 0; standing:
-    (sites,) where a mast stands already. Stops when nothing is left to add, at
+    duals price). cost: (C,) > 0; standing: (sites,) where a mast stands already. Stops when nothing is left to add, at
     ``deadline`` (``time.perf_counter()``), at ``stop``, or once the bound at
     ``masts`` reaches ``enough`` (more would prove nothing the caller needs: the
     restricted LP's value is no upper bound to stop at while rows are missing). Yields

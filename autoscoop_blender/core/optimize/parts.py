@@ -82,6 +82,7 @@ from .bound import (
     quiet,
     sensors_on_sites,
     site_cover,
+    site_matrix,
 )
 from .cover import Cover, CoverInstance, complete
 from .lp import (
@@ -214,13 +215,7 @@ def site_line(
     with the line by then: a part that has spent its time still proves its line
     (Town04's last part, 20 steps at its deadline: 4.72 where 1,000 proved 7.23)."""
     cands = part.cands
-    col = np.searchsorted(part.sites, cands.position)
-    pick = sparse.csr_matrix(
-        (np.ones(len(col)), (col, np.arange(len(col)))), shape=(len(part.sites), len(cands))
-    )
-    sites = (pick @ inst.matrix.astype(np.float64)).tocsr()
-    sites.sort_indices()
-    sites.data = np.minimum(sites.data, inst.k[sites.indices]) if inst.multi else sites.data * 0 + 1
+    sites = site_matrix(inst, np.searchsorted(part.sites, cands.position), len(part.sites))
     cost = np.where(standing[part.sites], 0.0, part.site_share)
     every = np.arange(len(part.sites), dtype=np.int64)
     site_inst = CoverInstance(sites, inst.goal, inst.xy, need=inst.k)
