@@ -970,3 +970,55 @@ def test_an_lp_with_no_duals_still_proves_a_line_when_asked(monkeypatch, seed):
     for goal in range(1, reach + 1):
         at = CoverInstance(inst.matrix, goal, inst.xy, need=inst.k)
         assert sol.slope * goal - sol.intercept <= full_lp(at, cost) + 1e-9
+
+
+def random_lp(n=1500, seed=0):
+    """A HiGHS model of min c x, A x >= 1, x >= 0 (n x n, 2 % dense): 0.1-0.5 s to solve."""
+    import highspy
+
+    rng = np.random.default_rng(seed)
+    a = sparse.random(n, n, density=0.02, random_state=seed, format="csr")
+    h = bound._new_highs(None)
+    h.addVars(n, np.zeros(n), np.full(n, highspy.kHighsInf))
+    h.changeColsCost(n, np.arange(n, dtype=np.int32), rng.random(n) + 0.1)
+    h.addRows(n, np.ones(n), np.full(n, highspy.kHighsInf), a.nnz,
+              a.indptr[:-1].astype(np.int32), a.indices.astype(np.int32), a.data)  # fmt: skip
+    return h
+
+
+def test_highs_holds_its_time_limit_against_every_run_so_far():
+    """Why ``limit_to`` adds the run time: a limit under the time the model has run
+    already ends the next solve, started from nothing, before its end."""
+    import highspy
+
+    h = random_lp()
+    h.run()
+    assert h.getModelStatus() == highspy.HighsModelStatus.kOptimal
+    h.clearSolver()
+    h.setOptionValue("time_limit", 0.5 * h.getRunTime())
+    h.run()
+    assert h.getModelStatus() == highspy.HighsModelStatus.kTimeLimit
+
+
+class ClockedHighs:
+    """Stands for a HiGHS model that has run ``ran_s`` seconds: records its time limit."""
+
+    def __init__(self, ran_s):
+        self.ran_s, self.limit = ran_s, None
+
+    def getRunTime(self):  # noqa: N802 (HiGHS' name)
+        return self.ran_s
+
+    def setOptionValue(self, name, value):  # noqa: N802
+        assert name == "time_limit"
+        self.limit = value
+
+
+@pytest.mark.parametrize("ran_s", [0.0, 100.0])
+def test_limit_to_gives_the_next_run_the_time_left(ran_s):
+    h = ClockedHighs(ran_s)
+    before = time.perf_counter()
+    bound.limit_to(h, before + 5.0)
+    assert ran_s + 5.0 - (time.perf_counter() - before) <= h.limit <= ran_s + 5.0
+    bound.limit_to(h, before - 1.0)  # past: the least limit HiGHS takes, not a negative one
+    assert h.limit == pytest.approx(ran_s + 0.01)

@@ -63,6 +63,7 @@ generates rows and columns of this model.
 
 from __future__ import annotations
 
+import logging
 import math
 import threading
 import time
@@ -74,11 +75,22 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import sparse
 
-from .bound import SAFETY, Solve, _add_columns, _le_zero_rows, _new_highs, _run, site_matrix
+from .bound import (
+    SAFETY,
+    Solve,
+    _add_columns,
+    _le_zero_rows,
+    _new_highs,
+    _run,
+    limit_to,
+    site_matrix,
+)
 from .cover import CoverInstance
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
+
+log = logging.getLogger(__name__)
 
 # The most new columns, and new point rows, a round.
 PER_ROUND = 200
@@ -422,17 +434,19 @@ def masts_sensors_lp(
     n_sites = len(standing)
     cap = _cap(inst, site_of)
     at = min(masts, int(np.count_nonzero(~standing)))  # where the curve holds ``masts``
+    began = time.perf_counter()
     lp = _Model(inst, cost, site_of, standing, masts, tight)
     lp.add_points(np.asarray(points, dtype=np.int64))
     lp.add_columns(np.asarray(columns, dtype=np.int64))
     best: F64 | None = None
-    value, rounds, complete = math.inf, 0, False
+    value, rounds, complete, why = math.inf, 0, False, "stopped"
     while True:
         if deadline is not None:
-            lp.h.setOptionValue("time_limit", max(deadline - time.perf_counter(), 0.01))
+            limit_to(lp.h, deadline)
         if (yield from _run(lp.h, stop)) is not Solve.DONE:
             break
         if lp.h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
+            why = f"HiGHS: {lp.h.modelStatusToString(lp.h.getModelStatus())}"
             break
         rounds += 1
         value = float(lp.h.getInfo().objective_function_value)
@@ -443,6 +457,7 @@ def masts_sensors_lp(
         if best is None or curve[at] > best[at]:
             best = curve
         if best[at] >= enough:
+            why = "enough"
             break
         if stop is not None and stop.is_set():
             break
@@ -475,10 +490,15 @@ def masts_sensors_lp(
             # it prices in (the LP may price a point in either of its two rows).
             added += lp.add_site_rows(ROWS_PER_ROUND) + lp.add_sites(new_sites)
         if added == 0:
-            complete = True
+            complete, why = True, "complete"
             break
     if best is None:
         best = np.zeros(int(np.count_nonzero(~standing)) + 1)
+    log.info(
+        "joint LP at %d masts%s: %s after %d rounds in %.1f s, value %.3f, bound %.3f",
+        masts, " (site rows)" if tight else "", why, rounds, time.perf_counter() - began,
+        value, best[at],
+    )  # fmt: skip
     return MastsSensors(masts, best, value, rounds, complete)
 
 
