@@ -16,6 +16,7 @@ import pytest
 from autoscoop_blender.core import budget
 from autoscoop_blender.core.candidates import CandidateSet
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA, SensorPose
+from autoscoop_blender.core.optimize import joint as joint_module
 from autoscoop_blender.core.optimize import lp as lp_module
 from autoscoop_blender.core.optimize import planner as planner_module
 from autoscoop_blender.core.optimize.base import FixedSensor, Solution, StopReason
@@ -96,12 +97,13 @@ def poses_of(solution):
     return [round(s.pose.yaw_deg / 10.0) for s in solution.sensors]
 
 
-def spy(monkeypatch, *names):
-    """Wrap lp.py's ``names`` (functions it calls): each call's arguments by name, the
-    defaults filled in, and under "returned" what it returned, listed per name."""
+def spy(monkeypatch, *names, module=lp_module):
+    """Wrap ``module``'s ``names`` (functions it calls; lp.py's by default): each
+    call's arguments by name, the defaults filled in, and under "returned" what it
+    returned, listed per name."""
     calls = {name: [] for name in names}
     for name in names:
-        real = getattr(lp_module, name)
+        real = getattr(module, name)
 
         def wrapper(*args, _real=real, _name=name, **kwargs):
             bound = inspect.signature(_real).bind(*args, **kwargs)
@@ -111,7 +113,7 @@ def spy(monkeypatch, *names):
             call["returned"] = _real(*args, **kwargs)
             return call["returned"]
 
-        monkeypatch.setattr(lp_module, name, wrapper)
+        monkeypatch.setattr(module, name, wrapper)
     return calls
 
 
@@ -614,6 +616,22 @@ def test_the_lp_optimizer_stopped_early_still_places_a_plan():
     assert planner.close() is None
 
 
+@pytest.mark.parametrize("limit, drawn", [(None, 3), (1e-9, 1)])
+def test_past_its_time_limit_one_plan_is_rounded_from_the_lp(monkeypatch, limit, drawn):
+    """Three plans to round (each greedy's own): without a limit all three are drawn;
+    past the limit the first alone (it may still beat greedy; more would overrun)."""
+    draws = []
+
+    def three(inst, lp, price=1.0):
+        for plan in ([0, 1, 2], [0, 1, 2], [0, 1, 2]):
+            draws.append(plan)
+            yield plan
+
+    monkeypatch.setattr(lp_module, "_lp_plans", three)
+    solve(HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="sensors", time_limit_s=limit))
+    assert len(draws) == drawn
+
+
 @pytest.mark.parametrize(
     "existing, seen, sensors", [(True, True, 1), (True, False, 1), (False, True, 2)]
 )
@@ -1054,7 +1072,7 @@ def test_the_cost_bound_takes_the_joint_bound(plan, monkeypatch):
     """On CAPPED at a mast cost of 3 the separate bounds prove 1 mast and 2 sensors,
     3 + 2 = 5; no mast carries 5 sensors, and the joint bound proves the optimum, 8,
     with a plan or without (either way its LP starts beside the sensors LP)."""
-    calls = spy(monkeypatch, "masts_sensors_lp")
+    calls = spy(monkeypatch, "masts_sensors_lp", module=joint_module)
     problem = HandLP(CAPPED, 5, [0] * 5 + [1, 2], mast_cost=3.0, max_sensors_per_mast=4)
     (bound, *_), _ = _bound_run(problem, plan=plan)
     assert (bound.masts, bound.sensors) == (1, 2)
@@ -1068,3 +1086,19 @@ def test_the_cost_bound_takes_the_joint_bound(plan, monkeypatch):
     sensors = HandLP(CAPPED, 5, [0] * 5 + [1, 2], objective="sensors", max_sensors_per_mast=4)
     (bound, *_), _ = _bound_run(sensors, plan=plan)
     assert bound.joint == 0.0 and len(solves) == 1
+
+
+def test_no_joint_lp_where_the_cap_and_the_bounds_apart_prove_the_plan(monkeypatch):
+    """Three sites, each with one candidate for each of 5 points (each point its own
+    sensor): one mast sees every point, but 5 sensors at 2 a mast need 3 masts, and
+    greedy's plan has 3 masts and 5 sensors, 3 x 3 + 5 = 14 (the optimum, by hand).
+    The bounds apart with the cap prove it, so the joint LP is not solved (at the 1
+    mast the fewest masts' MILP proves, it would only find that 1 mast cannot carry
+    the sensors)."""
+    calls = spy(monkeypatch, "masts_sensors_lp", module=joint_module)
+    rows = [[n] for _ in range(3) for n in range(5)]
+    problem = HandLP(rows, 5, np.repeat([0, 1, 2], 5), mast_cost=3.0, max_sensors_per_mast=2)
+    (bound, *_), _ = _bound_run(problem)
+    assert (bound.masts, bound.sensors) == (3, 5)
+    assert bound.objective("cost", 3.0, 1.0) == pytest.approx(14.0)
+    assert calls["masts_sensors_lp"] == []

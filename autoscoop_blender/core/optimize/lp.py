@@ -83,7 +83,7 @@ from .cover import (
     improve,
     plan_price,
 )
-from .joint import MastsSensors, enough_sensors, joint_bound, masts_sensors_lp
+from .joint import MastsSensors, joint_bound
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
@@ -542,27 +542,31 @@ class _JointStart:
                 yield None
                 continue
             self.started = True
-            columns, duals, m = start
+            columns, duals, sensors = start
             s = self.problem.settings
-            price = float(sensor_price(self.problem, self.cands))
-            self.solved.append((yield from masts_sensors_lp(
-                self.inst, np.ones(len(self.cands)), self.cands.position,
-                self.problem.space.standing, m, columns, np.flatnonzero(duals > 0),
-                self.deadline, self.stop, enough_sensors(self.best, s.mast_cost, price, m),
+            standing = self.problem.space.standing
+            fewest = max(self.sites.bound, capped_masts(  # type: ignore[union-attr]
+                sensors, s.max_sensors_per_mast, int(np.count_nonzero(standing))
+            ))  # fmt: skip
+            yield from joint_bound(
+                self.inst, self.cands.position, standing, fewest, s.mast_cost,
+                float(sensor_price(self.problem, self.cands)), float(sensors), columns,
+                np.flatnonzero(duals > 0), self.best, self.solved, self.deadline, self.stop,
                 s.tight_bound,
-            )))  # fmt: skip
+            )  # fmt: skip
         return value
 
     def _start(self) -> tuple[I64, F64, int] | None:
-        """(columns, point duals, the fewest masts) to start from, None while not known."""
+        """(columns, point duals, the sensors bound) to start from, None while the
+        fewest masts or the LP's duals are not known."""
         if self.sites is None:
             return None
         if self.lp is not None and self.lp.pi is not None:
-            return self.lp.columns, self.lp.pi, self.sites.bound
+            return self.lp.columns, self.lp.pi, self.lp.integer_bound()
         step = self.latest
         if step is None or step.duals is None or step.in_lp is None:
             return None
-        return step.in_lp, step.duals, self.sites.bound
+        return step.in_lp, step.duals, max(0, math.ceil(step.bound - 1e-6))
 
 
 def _progress(
@@ -642,6 +646,10 @@ def prove_and_plan(
     found = len(plans)
     began = time.perf_counter()
     while stop is None or not stop.is_set():  # each plan is rounded only when asked for
+        if deadline is not None and time.perf_counter() > deadline and len(plans) > found:
+            # Past the deadline, one: at k = 2 on two_routes the five took 62 s
+            # after a 240 s limit (2026-11-28).
+            break
         plan = next(rounded, None)
         if plan is None:
             break
