@@ -253,6 +253,19 @@ def _grace() -> float:
     return STOP_GRACE_S if _State.stopped or _State.stopper is not None else GRACE_S
 
 
+def _second_interrupt(data: bytes, counting: bool) -> bool:
+    """Whether the watchdog's ``data`` (signal numbers and ``_FINISHED``, in the order
+    they came) brings an interrupt after the first one, or after the command's end:
+    ``counting`` when one of those came in an earlier read. The end may come in the
+    same read as the interrupt that caused it (the main thread can get there before
+    this thread runs): that is no second interrupt."""
+    for byte in data:
+        if byte in _SIGNALS and counting:
+            return True
+        counting = counting or byte in _SIGNALS or byte == _FINISHED[0]
+    return False
+
+
 def _watch(read_end: socket.socket) -> None:
     """The watchdog thread (module docstring)."""
     first: float | None = None
@@ -263,15 +276,10 @@ def _watch(read_end: socket.socket) -> None:
         ready, _, _ = select.select([read_end], [], [], None if first is None else 0.05)
         if not ready:
             continue
-        data = read_end.recv(64)
-        if _FINISHED in data and first is None:
-            first = time.monotonic()  # the exit's own deadline
-        got = [b for b in data if b in _SIGNALS]
-        if not got:
-            continue
-        if first is not None or len(got) > 1:
-            break  # a second interrupt: at once
-        first = time.monotonic()
+        if _second_interrupt(read_end.recv(64), first is not None):
+            break  # at once
+        if first is None:
+            first = time.monotonic()  # an interrupt's grace, or the exit's own deadline
     if _State.finished is not None:  # stuck in the interpreter's exit: done all the same
         os._exit(_State.finished)
     last_line()

@@ -168,31 +168,35 @@ def optimize(args: argparse.Namespace) -> int:
 
         interrupts.keep(checkpoint_kept)
         builder = part_builder(args.engine, make_caster, args.workers)
-        run = Run(
-            scene, make_caster, model, settings, resume, on_fixed=checkpoint.append,
-            workers=workers, existing=existing, existing_masts=existing_masts,
-            part_builder=builder,
-        )  # fmt: skip
-        if resume:
-            print(f"resuming after {len(resume)} fixed sensor(s)", file=sys.stderr)
-        est = run.problem.estimate
-        limit = ""
-        if settings.optimizer == "lp":
-            limit = f"; {time_text(est.build_s, time_limit(settings, est.parts))}"
-        print(f"estimate: {estimate_text(est)}{limit}", file=sys.stderr, flush=True)
-        preload_figure()
-        bar = ProgressBar(t0=run.t0)
-        stop = EarlyStop(run, checkpoint_kept)
-        try:
+        run: Run | None = None
+        bar: ProgressBar | None = None
+        try:  # from here on an interrupt leaves no worker, Ray's included
+            run = Run(
+                scene, make_caster, model, settings, resume, on_fixed=checkpoint.append,
+                workers=workers, existing=existing, existing_masts=existing_masts,
+                part_builder=builder,
+            )  # fmt: skip
+            if resume:
+                print(f"resuming after {len(resume)} fixed sensor(s)", file=sys.stderr)
+            est = run.problem.estimate
+            limit = ""
+            if settings.optimizer == "lp":
+                limit = f"; {time_text(est.build_s, time_limit(settings, est.parts))}"
+            print(f"estimate: {estimate_text(est)}{limit}", file=sys.stderr, flush=True)
+            preload_figure()
+            bar = ProgressBar(t0=run.t0)
+            stop = EarlyStop(run, checkpoint_kept)
             with interrupts.early_stop(stop):
                 for progress in run.steps():
                     stop.see(progress)
                     bar.update(progress)
         finally:  # interrupted too: no worker left, the bar's line ended
-            run.close()
+            if run is not None:
+                run.close()
             if builder is not None:
                 builder.close()
-            bar.close()
+            if bar is not None:
+                bar.close()
         result = run.result()
         stopped = interrupts.stopped()
         if stopped:

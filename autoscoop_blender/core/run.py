@@ -89,9 +89,10 @@ class Run:
         for record in resume:
             self._replay(record)
         self.part_builder = part_builder
-        self.optimizer = self._optimizer(make_caster, workers)
         self.ahead = ReportAhead(self.problem)
         self._result: Result | None = None
+        # Last: the caller closes what it starts (its worker processes) from here on.
+        self.optimizer = self._optimizer(make_caster, workers)
 
     def _optimizer(self, make_caster: CasterFactory, workers: int) -> Optimizer:
         if self.settings.optimizer == "greedy":

@@ -269,6 +269,28 @@ def test_a_second_interrupt_ends_it_at_once():
     assert stderr == "interrupted: what the test keeps\n"
 
 
+INT, TERM, END = bytes([signal.SIGINT]), bytes([signal.SIGTERM]), b"\0"
+
+
+@pytest.mark.parametrize(
+    ("data", "counting", "second"),
+    [
+        (INT, False, False),
+        (INT + END, False, False),  # the end came before the watchdog read the signal
+        (INT + INT, False, True),
+        (INT + TERM, False, True),
+        (INT, True, True),
+        (END + INT, False, True),  # an interrupt after the command's end
+        (END, False, False),
+        (END, True, False),
+    ],
+)
+def test_what_the_watchdog_counts_as_a_second_interrupt(data, counting, second):
+    from headless.interrupts import _second_interrupt
+
+    assert _second_interrupt(data, counting) is second
+
+
 def test_a_held_interrupt_is_raised_when_the_block_ends():
     """Held for a moment, not lost: KeyboardInterrupt comes at the end of the block."""
     proc = watchdog_script(

@@ -2,7 +2,8 @@
 
 Each worker gets the problem's grid as arrays (``Problem.worker_inputs``), the model,
 the settings and a caster factory (a picklable callable that builds the ray caster in
-the worker, since a BVHTree does not pickle). It rebuilds the grid and the coverage
+the worker, since a BVHTree does not pickle), through a file the pool writes once
+(``WorkerPool``). It rebuilds the grid and the coverage
 evaluator from them, keeps the fitness state of the sensors fixed so far, and scores
 poses the main process has already placed on the ground. Scoring is exact, so the
 answer is the same with 1 or N workers.
@@ -16,12 +17,15 @@ from __future__ import annotations
 import multiprocessing
 import multiprocessing.connection
 import os
+import pickle
 import signal
+import tempfile
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
@@ -53,24 +57,29 @@ class _Worker:
 _WORKER: _Worker | None = None
 
 
-def _die_with_parent() -> None:
+def _die_with_parent(inputs_file: Path) -> None:
     """End this worker as soon as the process that started it is gone, even when it was
-    killed (SIGKILL runs no clean-up, and the executor would wait for work forever)."""
+    killed (SIGKILL runs no clean-up, and the executor would wait for work forever);
+    remove the pool's ``inputs_file`` first, which that process could not."""
     parent = multiprocessing.parent_process()
     if parent is None:
         return
 
     def watch() -> None:
         multiprocessing.connection.wait([parent.sentinel])
+        inputs_file.unlink(missing_ok=True)
         os._exit(1)
 
     threading.Thread(target=watch, name="autoscoop-parent-watch", daemon=True).start()
 
 
-def _start(inputs: WorkerInputs, make_caster: Callable[[], RayCaster]) -> None:
+def _start(inputs_file: str) -> None:
+    """A worker's start: its state from the pickled (WorkerInputs, caster factory)."""
     global _WORKER
-    _die_with_parent()
+    _die_with_parent(Path(inputs_file))
     _after_spawn()
+    with open(inputs_file, "rb") as f:
+        inputs, make_caster = pickle.load(f)
     caster = make_caster()
     grid = GroundGrid.from_arrays(inputs.grid, caster)
     evaluator = make_evaluator(inputs.settings, grid, caster, inputs.settings.cache)
@@ -105,25 +114,48 @@ _INTERRUPTS = (signal.SIGINT, signal.SIGTERM)
 @contextmanager
 def _spawning() -> Iterator[None]:
     """Start worker processes in this block: they come up deaf to Ctrl-C and SIGTERM
-    until they have their start-up data (``_after_spawn``).
+    until they have read what the pipe brings them (``_after_spawn``), and this process
+    acts on either only at the end of the block.
 
-    A spawned process is sent its start-up data (the grid's arrays: megabytes) through
-    a pipe by the main thread, which keeps the pipe's reading end open itself: a child
-    ended by an interrupt before it has read everything leaves that write blocked for
-    ever. So the interrupts are blocked in this thread while the children are made: a
-    child inherits the blocked mask through its exec, and the new interpreter leaves
-    it so. This process still gets them: another thread takes them (Python's C
-    handler only flags them for the main thread), or they wait, pending, for the end
-    of the block. Only POSIX can block signals: elsewhere this holds nothing.
+    A spawned process is sent its start-up data through a pipe by the main thread,
+    which keeps the pipe's reading end open itself: a child ended by an interrupt before
+    it has read everything would leave a long write blocked for ever. So the interrupts
+    are blocked in this thread while the children are made: a child inherits the
+    blocked mask through its exec, and the new interpreter leaves it so. This process
+    still gets them through its other threads, and Python runs its handlers in the main
+    thread whichever thread took the signal: an exception raised there while a child is
+    being sent its data closes the pipe half-written, and the child dies on an
+    ``EOFError`` traceback (CI, 2026-11-28). So the handlers only note the signals in the
+    block, and their handlers run after it. The block is short: the pipe
+    brings a file name (``WorkerPool``). Only POSIX can block signals, and only the
+    main thread sets handlers: elsewhere this holds nothing.
     """
     if not hasattr(signal, "pthread_sigmask"):
         yield
         return
+    noted: list[int] = []
+    in_main = threading.current_thread() is threading.main_thread()
+    # None: a handler not set from Python (an embedding's), which could not be put back.
+    handlers = (
+        {s: h for s in _INTERRUPTS if (h := signal.getsignal(s)) is not None} if in_main else {}
+    )
+    for s in handlers:
+        signal.signal(s, lambda n, _frame: noted.append(n))
     signal.pthread_sigmask(signal.SIG_BLOCK, _INTERRUPTS)
     try:
         yield
     finally:
+        for s, handler in handlers.items():
+            signal.signal(s, handler)
         signal.pthread_sigmask(signal.SIG_UNBLOCK, _INTERRUPTS)
+        for n in dict.fromkeys(noted):  # each once, in the order they came
+            # The handler itself, not the signal again: a watcher of the signals
+            # (``signal.set_wakeup_fd``) would count a second one.
+            now = signal.getsignal(n)
+            if callable(now):
+                now(n, None)
+            elif now == signal.SIG_DFL:
+                signal.raise_signal(n)
 
 
 def _after_spawn() -> None:
@@ -139,27 +171,47 @@ def _after_spawn() -> None:
 class WorkerPool:
     """``workers`` processes (spawned: a forked Blender is not safe) that score poses.
 
-    The processes are spawned here, deaf to interrupts (``_spawning``); they then load
-    the grid and the caster while the main process goes on.
+    The start-up data (the grid's arrays and the scene's triangles: megabytes) is
+    pickled once into a temporary file, and the processes are spawned with its name
+    alone, deaf to interrupts (``_spawning``): a spawn then writes a few hundred bytes
+    to its pipe and takes milliseconds, where a child reading megabytes while it
+    imports numpy took seconds, and an interrupt waited for it. The processes load the
+    file while the main process goes on; it is removed once all have it, at
+    ``shutdown``, or by the workers when the main process was killed.
     """
 
     def __init__(
         self, inputs: WorkerInputs, make_caster: Callable[[], RayCaster], workers: int
     ) -> None:
-        spawn = multiprocessing.get_context("spawn")
-        self.executors = [
-            ProcessPoolExecutor(
-                max_workers=1, mp_context=spawn, initializer=_start, initargs=(inputs, make_caster)
-            )
-            for _ in range(workers)
-        ]
+        fd, name = tempfile.mkstemp(prefix="autoscoop-workers-", suffix=".pickle")
+        self.inputs_file = Path(name)
+        self.executors: list[ProcessPoolExecutor] = []
         try:
+            with os.fdopen(fd, "wb") as f:
+                pickle.dump((inputs, make_caster), f, protocol=pickle.HIGHEST_PROTOCOL)
+            spawn = multiprocessing.get_context("spawn")
+            self.executors = [
+                ProcessPoolExecutor(
+                    max_workers=1, mp_context=spawn, initializer=_start, initargs=(name,)
+                )
+                for _ in range(workers)
+            ]
             with _spawning():
-                for executor in self.executors:
-                    executor.submit(_started)
-        except BaseException:  # interrupted: no process is left behind
+                started = [executor.submit(_started) for executor in self.executors]
+        except BaseException:  # interrupted: no process or file is left behind
             self.shutdown()
             raise
+        left = [len(started)]
+        lock = threading.Lock()
+
+        def one_started(_future: Future) -> None:  # (the executors' threads call it)
+            with lock:
+                left[0] -= 1
+                if not left[0]:
+                    self.inputs_file.unlink(missing_ok=True)
+
+        for future in started:
+            future.add_done_callback(one_started)
         self.synced = [0] * workers  # entries of the fixed log each worker has been sent
 
     @property
@@ -186,3 +238,4 @@ class WorkerPool:
             for process in processes:
                 process.join()
             executor.shutdown(wait=True)
+        self.inputs_file.unlink(missing_ok=True)
