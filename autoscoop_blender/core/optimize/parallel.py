@@ -125,10 +125,10 @@ def _spawning() -> Iterator[None]:
     still gets them through its other threads, and Python runs its handlers in the main
     thread whichever thread took the signal: an exception raised there while a child is
     being sent its data closes the pipe half-written, and the child dies on an
-    ``EOFError`` traceback (CI, 2026-11-28). So the handlers only note the signals in the
-    block, and their handlers run after it. The block is short: the pipe
-    brings a file name (``WorkerPool``). Only POSIX can block signals, and only the
-    main thread sets handlers: elsewhere this holds nothing.
+    ``EOFError`` traceback (CI, 2026-11-28). So in the block the handlers only note
+    the signals, and the process's own handlers run after it. The block is short: the
+    pipe brings a file name (``WorkerPool``). Only POSIX can block signals, and only
+    the main thread sets handlers: elsewhere this holds nothing.
     """
     if not hasattr(signal, "pthread_sigmask"):
         yield
