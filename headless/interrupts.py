@@ -276,7 +276,11 @@ def _watch(read_end: socket.socket) -> None:
         ready, _, _ = select.select([read_end], [], [], None if first is None else 0.05)
         if not ready:
             continue
-        if _second_interrupt(read_end.recv(64), first is not None):
+        # (another signal with a Python handler writes its number here too)
+        data = bytes(b for b in read_end.recv(64) if b in _SIGNALS or b == _FINISHED[0])
+        if not data:
+            continue
+        if _second_interrupt(data, first is not None):
             break  # at once
         if first is None:
             first = time.monotonic()  # an interrupt's grace, or the exit's own deadline

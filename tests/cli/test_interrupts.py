@@ -257,6 +257,20 @@ def test_work_that_holds_the_interrupt_is_ended_by_the_watchdog(tmp_path):
     assert not scratch.exists()
 
 
+def test_another_signal_starts_no_grace():
+    """A signal with a Python handler of its own (SIGUSR1 here) reaches the watchdog
+    too: the work goes on past the grace, and its own end is its exit code."""
+    proc = watchdog_script(
+        "import signal\nsignal.signal(signal.SIGUSR1, lambda *a: None)\n"
+        "with interrupts.held():\n    ready()\n    time.sleep(4.0)\n"
+        "print('done', flush=True)\nsys.exit(interrupts.finish(0))\n"
+    )
+    assert proc.stdout.readline().strip() == "ready"
+    proc.send_signal(signal.SIGUSR1)
+    out, stderr = proc.communicate(timeout=30)
+    assert (proc.returncode, out.strip(), stderr) == (0, "done", "")
+
+
 def test_a_second_interrupt_ends_it_at_once():
     proc = watchdog_script("with interrupts.held():\n    ready()\n    time.sleep(60)\n")
     assert proc.stdout.readline().strip() == "ready"
