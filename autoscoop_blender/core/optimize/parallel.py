@@ -201,14 +201,10 @@ class WorkerPool:
         except BaseException:  # interrupted: no process or file is left behind
             self.shutdown()
             raise
-        left = [len(started)]
-        lock = threading.Lock()
 
         def one_started(_future: Future) -> None:  # (the executors' threads call it)
-            with lock:
-                left[0] -= 1
-                if not left[0]:
-                    self.inputs_file.unlink(missing_ok=True)
+            if all(f.done() for f in started):  # (two may both see it: unlink is idempotent)
+                self.inputs_file.unlink(missing_ok=True)
 
         for future in started:
             future.add_done_callback(one_started)
