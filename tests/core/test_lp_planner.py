@@ -4,6 +4,7 @@ an LP, the order it fixes them in and why it stops. Every expected value is work
 out on paper from the rows in each test; the solvers run for real (HiGHS)."""
 
 import inspect
+import itertools
 import math
 import threading
 import time
@@ -21,7 +22,7 @@ from autoscoop_blender.core.optimize import lp as lp_module
 from autoscoop_blender.core.optimize import planner as planner_module
 from autoscoop_blender.core.optimize.base import FixedSensor, Solution, StopReason
 from autoscoop_blender.core.optimize.bound import LPSolution, SiteSolution
-from autoscoop_blender.core.optimize.cover import CoverInstance
+from autoscoop_blender.core.optimize.cover import Cover, CoverInstance
 from autoscoop_blender.core.optimize.planner import LPPlanner
 from autoscoop_blender.core.settings import OptimizeSettings
 from tests.core.test_lp import instance as rows_instance
@@ -543,6 +544,50 @@ def test_prove_and_plan_beats_greedy_and_reports_it():
     after = [r for r in reports if r.bound == 2.0 and r.best == 2.0]
     assert len(after) == 1 + 5 and reports[-6:] == after
     assert {(r.phase, r.rho) for r in reports} == {("search", 1.0)}
+
+
+def _cheapest_by_brute_force(rows, n_points, site_of, k, cap, mast_cost=3.0):
+    """The least cost (mast_cost per site used, 1 per sensor) of any set of the
+    candidates ``rows`` that covers every point k times, at most ``cap`` a site."""
+    best = math.inf
+    for n in range(len(rows) + 1):
+        for chosen in itertools.combinations(range(len(rows)), n):
+            count = np.bincount([p for c in chosen for p in rows[c]], minlength=n_points)
+            per_site = np.bincount([site_of[c] for c in chosen], minlength=max(site_of) + 1)
+            if (count >= k).all() and per_site.max(initial=0) <= cap:
+                best = min(best, mast_cost * np.count_nonzero(per_site) + n)
+    return best
+
+
+def test_a_plan_on_the_lps_columns_finds_what_the_fewest_masts_hide(monkeypatch):
+    """k = 2, at most 2 sensors a mast. Site 1 carries two candidates that see all 4
+    points: cost 3 + 2 = 5, the optimum by a search of all 64 sets. Site 2 too sees
+    every point twice; the fewest masts, which do not know of the cap, choose it, and
+    the plans from the masts cost 8. The LP (2 sensors: each of its columns sees all
+    4 points) spreads over sites 0 and 1; greedy over its columns, then closing a
+    mast, gives site 1's pair."""
+    rows = [[0, 1, 2, 3], [0, 1, 2, 3], [0, 1, 2, 3], [0, 1, 2], [1, 3], [0, 1, 2, 3]]
+    site_of = [0, 1, 1, 2, 2, 2]
+    assert _cheapest_by_brute_force(rows, 4, site_of, 2, 2) == 5
+    calls = spy(monkeypatch, "plan_from")
+    problem = HandLP(rows, 4, site_of, need=[2] * 4, objective="cost", max_sensors_per_mast=2)
+    res, _ = solve(problem)
+    assert sorted(poses_of(res)) == [1, 2] and res.n_covered == 4
+    on_lp = calls["plan_from"][-1]  # after the plans on the masts' sites
+    assert set(on_lp["pool"].tolist()) <= {0, 1, 2, 5} and len(on_lp["pool"]) >= 2
+    assert sorted(on_lp["returned"].chosen) == [1, 2]
+    # Without the plan on the LP's columns the same run settles for two masts.
+    real = lp_module.plan_from
+
+    def masts_only(problem, cands, inst, pool):
+        if inspect.stack()[1].function == "prove_and_plan":
+            return Cover(inst)
+        return real(problem, cands, inst, pool)
+
+    monkeypatch.setattr(lp_module, "plan_from", masts_only)
+    res, _ = solve(problem)
+    masts = len({site_of[c] for c in poses_of(res)})
+    assert res.n_covered == 4 and 3 * masts + len(res.sensors) == 8
 
 
 def _fixed(problem, c, existing=False, seen=True):
