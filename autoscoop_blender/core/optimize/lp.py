@@ -20,8 +20,9 @@ On the problem's candidate set (``core/candidates.py``):
    value, completed greedily from a pool (the restricted LP's columns and every
    candidate whose reduced cost is within ``POOL_REDUCED_COST``), then improved by
    pruning and two-for-one swaps (``cover.py``; not for a part of a ground in parts,
-   where they never came near); with the plan on the fewest masts, the one that is
-   best for the objective wins.
+   where they never came near); and greedy per cost over the LP's columns, as in 3
+   (``plan_from``); with the plan on the fewest masts, the one that is best for the
+   objective wins.
 
 Deterministic (no random choice; the seed plays no part; HiGHS' MILP is limited in
 nodes, not seconds) unless the time limit ends it (``planner.py``: by default 240 s a
@@ -644,10 +645,11 @@ def prove_and_plan(
     plans = [g.chosen for g in greedies if g.slack >= 0] + ([on_sites] if on_sites else [])
     if len(lp.columns) and (stop is None or not stop.is_set()):
         # The LP spreads a k > 1 cover over sites that the fewest masts, which count
-        # a site once, do not show: on two_routes at k = 2 this plan was 73 sensors
-        # on 21 masts (136) where those on the fewest masts' sites were 83 on 24
-        # (155). At k = 1 it is worse than those (85 against 74; 57-67 against 51
-        # on Town01's first part), and the cheapest plan is kept (2026-11-28).
+        # what a site sees once and not the sensors it can carry, do not show: on
+        # two_routes at k = 2 this plan was 76 sensors on 22 masts (142; 136 over
+        # the LP solved to its end) where those on the fewest masts' sites were 83
+        # on 24 (155). At k = 1 it is worse than those (82-86 against 74; 57-67
+        # against 51 on Town01's first part), and the cheapest plan is kept.
         on_lp = plan_from(problem, cands, inst, lp.columns[lp.x > 1e-9])
         if on_lp.slack >= 0:
             plans.append(on_lp.chosen)
