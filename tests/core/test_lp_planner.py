@@ -17,6 +17,7 @@ import pytest
 from autoscoop_blender.core import budget
 from autoscoop_blender.core.candidates import CandidateSet
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA, SensorPose
+from autoscoop_blender.core.optimize import bound as bound_module
 from autoscoop_blender.core.optimize import joint as joint_module
 from autoscoop_blender.core.optimize import lp as lp_module
 from autoscoop_blender.core.optimize import planner as planner_module
@@ -431,19 +432,18 @@ def test_the_fewest_masts_then_a_plan_on_them():
     assert sites.sites.tolist() == [] and sites.bound == 1 and sorted(plan) == [0, 1, 2]
 
 
-@pytest.mark.parametrize("most, milps", [(1000, 1), (2, 0)])
-def test_at_k_2_a_large_mast_aware_milp_is_skipped(monkeypatch, most, milps):
-    """k = 2 on site 0's three candidates (each sees points 0, 1): the plan on the
-    fewest masts is two of them. With at most ``most`` candidates for a MILP at k > 1
-    it runs on the 3 when it may, and is skipped (the start kept) when it may not."""
-    monkeypatch.setattr(lp_module, "MAX_MULTI_MILP_CANDIDATES", most)
-    calls = spy(monkeypatch, "sensors_on_sites")
+@pytest.mark.parametrize("most, sensors", [(1000, 2), (2, 3)])
+def test_at_k_2_a_large_mast_aware_milp_is_not_solved(monkeypatch, most, sensors):
+    """k = 2 on site 0's three candidates (each sees points 0, 1), started from all
+    three: the MILP finds two of them enough when it may run on 3 candidates, and the
+    start is the answer when at most 2 are allowed at k > 1."""
+    monkeypatch.setattr(bound_module, "MAX_MULTI_MILP_CANDIDATES", most)
     problem = HandLP([[0, 1], [0, 1], [0, 1]], 2, [0, 0, 0], need=[2, 2], objective="cost")
     inst = lp_module.instance(problem.candidates, problem, np.zeros(2, bool))
-    go = lp_module.masts_then_plan(problem, problem.candidates, inst, None, None, True)
-    sites, plan = steps(go)[0]
-    assert len(calls["sensors_on_sites"]) == milps
-    assert sites.sites.tolist() == [0] and len(plan) == 2 and set(plan) <= {0, 1, 2}
+    site_of = problem.candidates.position
+    go = bound_module.sensors_on_sites(inst, site_of, np.array([0]), [0, 1, 2], 3.0, 1.0)
+    plan = steps(go)[0]
+    assert len(set(plan)) == len(plan) == sensors and set(plan) <= {0, 1, 2}
 
 
 def test_a_full_mast_takes_the_rest_from_another_site():

@@ -98,6 +98,11 @@ SMOOTHING = 0.5
 # Branch-and-bound nodes of the mast-aware MILP: a limit in work, not seconds, so the
 # plan is the same on a fast and a slow machine.
 MAX_NODES = 2000
+# At k > 1 a point's u is whole too, and the mast-aware MILP grows hard: on two_routes
+# at k = 2 (24 masts, 3,984 candidates) HiGHS found nothing cheaper than its start in
+# 150-170 s beside the LP, still in its root node's cuts, and held 0.5 GiB. Above this
+# many candidates it is not solved: the start is the answer.
+MAX_MULTI_MILP_CANDIDATES = 1000
 
 
 class Solve(enum.Enum):
@@ -1042,10 +1047,13 @@ def sensors_on_sites(
     machine's speed; stops at ``deadline`` or ``stop`` with the best plan so far.
     ``cutoff``: only plans whose objective is below it are looked for (HiGHS prunes
     every node whose bound is not; a start above it is not given to it); ``start``
-    when none is found. Returns the chosen candidates."""
+    when none is found, or at k > 1 on more than ``MAX_MULTI_MILP_CANDIDATES``.
+    Returns the chosen candidates."""
     if cols is None:
         cols = np.flatnonzero(np.isin(site_of, sites)).astype(np.int64)
     cols = np.unique(cols[np.isin(site_of[cols], sites)])
+    if inst.multi and len(cols) > MAX_MULTI_MILP_CANDIDATES:
+        return list(start)
     site_idx = np.searchsorted(sites, site_of[cols])
     # Points seen by the same of these candidates are one row (see ``MergedPoints``).
     merged = MergedPoints.of(inst.matrix[cols], inst.k)

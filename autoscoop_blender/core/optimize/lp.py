@@ -101,11 +101,6 @@ THRESHOLDS = (0.9, 0.7, 0.5, 0.3, 0.2)
 # 100 candidates each that see the most (3,710) took 148 s and lowered the cost
 # from 239 to 215.
 MAX_MILP_CANDIDATES = 4000
-# At k > 1 a point's u is whole too, and the MILP grows hard: on two_routes at k = 2
-# (24 masts, 3,984 candidates) HiGHS found nothing cheaper than its start in 150-170 s
-# beside the LP, still in its root node's cuts, and held 0.5 GiB. Above this many
-# candidates the start is kept as it is.
-MAX_MULTI_MILP_CANDIDATES = 1000
 # A start's mast-aware MILP after the first looks only for plans at least this much
 # cheaper than the best so far (in the MILP's objective; below any cost step).
 CUTOFF_EPS = 1e-6
@@ -335,12 +330,9 @@ def masts_then_plan(
         # for 56 where the first's had 47).
         cutoff = None if best is None else plan_price(best, site_of, mc, sc) - CUTOFF_EPS
         began = time.perf_counter()
-        if inst.multi and len(cols) > MAX_MULTI_MILP_CANDIDATES:
-            chosen = list(start.chosen)
-        else:
-            chosen = yield from sensors_on_sites(
-                inst, site_of, used, start.chosen, mc, sc, deadline, stop, cols=cols, cutoff=cutoff
-            )
+        chosen = yield from sensors_on_sites(
+            inst, site_of, used, start.chosen, mc, sc, deadline, stop, cols=cols, cutoff=cutoff
+        )
         value = plan_value(problem, cands, chosen) if chosen else math.inf
         log.info(
             "mast-aware MILP on %d sites, %d candidates: %g -> %g in %.1f s", len(used),
