@@ -357,6 +357,40 @@ def test_the_masts_bound_counts_the_fewest_sensors_at_the_cap(monkeypatch):
     assert lp_module.capped_masts(9, 4, 2) == 1 and lp_module.capped_masts(9, 4, 3) == 0
 
 
+@pytest.mark.parametrize(
+    "bound, value, standing, starts",
+    [
+        (20.2, 21.0, (), True),  # 21 sensors need 6 masts at 4, and 6 are proven now
+        (19.5, 21.0, (), False),  # 20 proven: 5 masts; the LP may end at 21, 6 masts
+        (19.5, 20.0, (), True),  # it cannot end above 20: 5 masts either way
+        (10.0, 15.0, (), True),  # the fewest masts' 5 hold 20: the cap moves nothing
+        (10.0, 21.5, (0,), True),  # a standing mast holds 4: 5 new hold 24 with it
+        (10.0, math.inf, (), False),  # no optimal restricted LP yet: no upper end
+    ],
+)
+def test_the_joint_lp_waits_while_the_sensors_lp_may_still_raise_its_masts(
+    bound, value, standing, starts
+):
+    """The fewest masts are 5, the cap 4. While the sensors LP works (proven so far
+    ``bound``, its restricted LP at ``value``, never below the LP's), the joint LP
+    starts only when the masts that the sensors need at the cap cannot rise above
+    where it would start: ceil(ceil(value) / 4) new masts, less the standing ones,
+    at most max(5, ceil(ceil(bound) / 4)). Once the LP has ended it starts anyway."""
+    flags = [s in standing for s in range(3)]
+    problem = HandLP([[0], [1], [2]], 3, [0, 1, 2], standing=flags, max_sensors_per_mast=4)
+    inst = rows_instance(problem.rows, 3, 3)
+    start = lp_module._JointStart(problem, problem.candidates, inst, 100.0, None, None)
+    start.sites = SiteSolution(5, np.arange(3), np.zeros(0, np.int64))
+    duals = np.ones(3)
+    start.latest = bound_module.LPProgress(4, value, bound, 3, duals, np.arange(3))
+    got = start._start()
+    assert (got is not None) == starts
+    if starts:
+        assert got[2] == math.ceil(bound)
+    start.lp = replace(_lp(bound), pi=duals)
+    assert start._start() is not None
+
+
 # ---------------------------------------------------------------- plans from the LP
 
 

@@ -324,8 +324,10 @@ def part_sites(
         return SiteSolution(0, mine[:0], mine)
     t1 = time.perf_counter()
     least = yield from fewest
+    # (Cut short by the part's time, the MILP has no set and its bound is no count.)
     log.info(
-        "fewest masts: %d (%d sites; %d in its LP) in %.1f s", least.bound, len(least.sites),
+        "fewest masts: %s (%d sites; %d in its LP) in %.1f s",
+        least.bound if len(least.sites) else "none found", len(least.sites),
         len(least.lp_sites), time.perf_counter() - t1,
     )  # fmt: skip
     milp, relaxed = (
