@@ -554,9 +554,7 @@ class _JointStart:
             columns, duals, sensors = start
             s = self.problem.settings
             standing = self.problem.space.standing
-            fewest = max(self.sites.bound, capped_masts(  # type: ignore[union-attr]
-                sensors, s.max_sensors_per_mast, int(np.count_nonzero(standing))
-            ))  # fmt: skip
+            fewest = _masts_bound(self.sites, sensors, self.problem)  # type: ignore[arg-type]
             yield from joint_bound(
                 self.inst, self.cands.position, standing, fewest, s.mast_cost,
                 float(sensor_price(self.problem, self.cands)), float(sensors), columns,
@@ -591,10 +589,10 @@ class _JointStart:
         if not math.isfinite(value):
             return True
         assert self.sites is not None
-        cap = self.problem.settings.max_sensors_per_mast
-        standing = int(np.count_nonzero(self.problem.space.standing))
-        now = max(self.sites.bound, capped_masts(sensors, cap, standing))
-        return capped_masts(math.ceil(value - 1e-6), cap, standing) > now
+        most = math.ceil(value - 1e-6)
+        return _masts_bound(self.sites, most, self.problem) > _masts_bound(
+            self.sites, sensors, self.problem
+        )
 
 
 def _progress(
