@@ -83,6 +83,16 @@ def test_the_start_up_file_is_removed_once_the_workers_have_it():
         r.close()
 
 
+def test_shutdown_leaves_no_executor_thread_running():
+    """The executors' manager threads are joined: one left running closes its wakeup
+    pipe while the interpreter's exit hook writes to it (EBADF traceback at exit)."""
+    r = Run(road_scene(), box_caster([BOX]), PAPER_CAMERA, FAST, workers=2)
+    managers = [e._executor_manager_thread for e in r.optimizer.pool.executors]
+    assert len(managers) == 2 and all(t is not None and t.is_alive() for t in managers)
+    r.close()
+    assert not any(t.is_alive() for t in managers)
+
+
 KILLED = """
 import os, signal
 from autoscoop_blender.core.model.sensors import PAPER_CAMERA

@@ -226,12 +226,17 @@ class WorkerPool:
         interrupted search needs none of it), so this never waits for a chunk."""
         for executor in self.executors:
             # The executor's own processes: it can only wait for them to finish
-            # (``kill_workers`` comes in Python 3.14).
+            # (``kill_workers`` comes in Python 3.14). And its manager thread, which
+            # ``shutdown(wait=False)`` forgets: left running, it closes its wakeup pipe
+            # while the interpreter's exit hook writes to it (EBADF traceback, CI
+            # 2026-11-29), so it is joined once the processes are gone.
             processes = list((executor._processes or {}).values())
+            manager = executor._executor_manager_thread
             executor.shutdown(wait=False, cancel_futures=True)
             for process in processes:
                 process.kill()
             for process in processes:
                 process.join()
-            executor.shutdown(wait=True)
+            if manager is not None:
+                manager.join()
         self.inputs_file.unlink(missing_ok=True)
