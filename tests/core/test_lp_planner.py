@@ -746,7 +746,7 @@ def test_the_deadline_and_the_stop_reach_every_solve(monkeypatch):
     """GREEDY_TRAP, a mast standing at site 1: the LP starts from greedy's columns,
     one column per position; the fewest masts get the standing mast; the mast-aware
     MILP the plan's sites, its start and its candidates; all the deadline and the
-    stop; the plans from the LP are completed at each candidate's price."""
+    stop."""
     problem = HandLP(
         GREEDY_TRAP, 7, [0, 1, 2], standing=[False, True, False], sensor_costs=(1.0, 2.0),
         model=[0, 1, 0],
@@ -778,8 +778,7 @@ def test_the_deadline_and_the_stop_reach_every_solve(monkeypatch):
     assert milp["sensor_cost"].tolist() == [1.0, 2.0, 1.0]
     for call in (lp, sites, milp):
         assert call["deadline"] == deadline and call["stop"] is stop
-    (plans,) = calls["_lp_plans"]
-    assert plans["price"].tolist() == [1.0, 2.0, 1.0]
+    assert calls["_lp_plans"] == []  # masts cost 3: nothing rounded for the sensors alone
 
 
 def test_the_lp_in_parts_is_handed_the_deadline_and_the_stop(monkeypatch):
@@ -804,12 +803,13 @@ def test_the_lp_in_parts_is_handed_the_deadline_and_the_stop(monkeypatch):
 def test_prices_follow_the_objective(monkeypatch):
     """Models at 1 and 3 (candidate 2 the dear one): for the sensors objective every
     candidate counts 1 in greedy, the LP and the LP's plans (the bound counts 2
-    sensors, not 4 of cost); for cost each its model's price."""
+    sensors, not 4 of cost); for cost (masts free, so plans are rounded from the LP)
+    each its model's price."""
     calls = spy(monkeypatch, "cover_lp", "_lp_plans")
     for objective, price in (("sensors", [1.0, 1.0, 1.0]), ("cost", [1.0, 1.0, 3.0])):
         problem = HandLP(
             GREEDY_TRAP, 7, [0, 1, 2], sensor_costs=(1.0, 3.0), model=[0, 0, 1],
-            objective=objective,
+            objective=objective, mast_cost=0.0,
         )  # fmt: skip
         inst = lp_module.instance(problem.candidates, problem, np.zeros(7, bool))
         go = lp_module.prove_and_plan(
@@ -822,6 +822,25 @@ def test_prices_follow_the_objective(monkeypatch):
         )
         assert bound.sensors == 2
     assert bound.lp == pytest.approx(4.0, abs=1e-4)
+
+
+@pytest.mark.parametrize(
+    "objective, mast_cost, rounded",
+    [("sensors", 3.0, True), ("cost", 0.0, True), ("cost", 3.0, False), ("masts", 3.0, False)],
+)
+def test_plans_are_rounded_from_the_lp_only_where_masts_cost_nothing(
+    monkeypatch, objective, mast_cost, rounded
+):
+    """The LP counts sensors alone, so its rounded plans do too: they are drawn for the
+    sensors objective or the cost with free masts, and not where masts count."""
+    calls = spy(monkeypatch, "_lp_plans")
+    problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective=objective, mast_cost=mast_cost)
+    inst = lp_module.instance(problem.candidates, problem, np.zeros(7, bool))
+    go = lp_module.prove_and_plan(
+        problem, problem.candidates, inst, Solution(np.zeros(7, bool)), None
+    )
+    steps(go)
+    assert len(calls["_lp_plans"]) == int(rounded)
 
 
 def test_greedy_goes_by_cost():

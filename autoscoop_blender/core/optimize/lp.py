@@ -19,10 +19,11 @@ On the problem's candidate set (``core/candidates.py``):
 4. plans are built from the LP: the candidates at or above a threshold of their LP
    value, completed greedily from a pool (the restricted LP's columns and every
    candidate whose reduced cost is within ``POOL_REDUCED_COST``), then improved by
-   pruning and two-for-one swaps (``cover.py``; not for a part of a ground in parts,
-   where they never came near); and greedy per cost over the LP's columns, as in 3
-   (``plan_from``); with the plan on the fewest masts, the one that is best for the
-   objective wins.
+   pruning and two-for-one swaps (``cover.py``; only on a ground solved whole where
+   masts cost nothing: they are rounded for the sensors, and where masts count, or
+   in a part, they never came near); and greedy per cost over the LP's columns, as
+   in 3 (``plan_from``); with the plan on the fewest masts, the one that is best for
+   the objective wins.
 
 Deterministic (no random choice; the seed plays no part; HiGHS' MILP is limited in
 nodes, not seconds) unless the time limit ends it (``planner.py``: by default 240 s a
@@ -675,10 +676,13 @@ def prove_and_plan(
         "search", problem.rho, bound=lower, best=min(map(value, plans)), stage="plans"
     )
     price = sensor_price(problem, cands) if s.objective == "cost" else 1.0
-    # A part's plans are not rounded from its LP: on Town01's 3 parts and Town04's 8
-    # they were worth 80-200 where the plan chosen (on the masts, or greedy per cost)
-    # was 47-137, and took 1-16 s a part (2026-11-27).
-    rounded = _lp_plans(inst, lp, price) if part is None else iter(())
+    # Plans rounded from the LP are rounded for the sensors alone, so only where masts
+    # cost nothing. Where they do, they never won: on two_routes 128-146 against 74 at
+    # k = 1 and 244-270 against 142 at k = 2, and took 8-15 s and 7-62 s
+    # (2026-11-27 to 29); on Town01's 3 parts and Town04's 8, 80-200 where the plan
+    # chosen was 47-137, for 1-16 s a part (2026-11-27).
+    masts_count = s.objective == "masts" or (s.objective == "cost" and s.mast_cost > 0)
+    rounded = _lp_plans(inst, lp, price) if part is None and not masts_count else iter(())
     found = len(plans)
     began = time.perf_counter()
     while stop is None or not stop.is_set():  # each plan is rounded only when asked for
