@@ -231,7 +231,8 @@ class WorkerPool:
             # while the interpreter's exit hook writes to it (EBADF traceback, CI
             # 2026-11-29), so it is joined once the processes are gone.
             processes = list((executor._processes or {}).values())
-            manager = executor._executor_manager_thread
+            # (typeshed calls it a ``_ThreadWakeup``; it is the thread)
+            manager: threading.Thread | None = executor._executor_manager_thread  # type: ignore[assignment]
             executor.shutdown(wait=False, cancel_futures=True)
             for process in processes:
                 process.kill()
