@@ -346,7 +346,7 @@ def no_mast_names(scene: SceneModel) -> list[str]:
 
 
 def part_builder(engine: str, make_caster: Any, workers: int | None) -> PartBuilder | None:
-    """Where lp builds a ground's parts (``--engine``): None for here, or a
+    """Where lp and greedy build a ground's parts (``--engine``): None for here, or a
     ``RayBuilder`` (InputError without Ray, or inside a Blender binary, whose Python
     Ray's workers would start and which cannot import bpy)."""
     if engine != "ray":

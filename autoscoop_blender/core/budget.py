@@ -363,11 +363,12 @@ def estimate_run(
     parts = 1
     if uses_candidates:
         nonzeros = int(positions * fp.covers_m2 / g**2)
-        # lp plans a large ground in parts, one part's matrix at a time
+        # lp and greedy plan a large ground in parts, one part's matrix at a time
         # (``optimize/parts.py``): the largest part's share of the nonzeros, with room
-        # for parts of unequal density.
+        # for parts of unequal density. Greedy's bound (``bound``) is the whole
+        # ground's LP, so greedy with a bound plans whole.
         held = nonzeros
-        if settings.optimizer == "lp":
+        if settings.optimizer == "lp" or (settings.optimizer == "greedy" and not settings.bound):
             parts = part_count(est.target_points, nonzeros)
             held = nonzeros if parts == 1 else int(nonzeros / parts * PART_IMBALANCE)
         tests = fp.orientations * fp.widest_m2 / g**2  # one position's cover_many

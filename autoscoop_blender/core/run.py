@@ -57,8 +57,8 @@ class Run:
     mast. Both join the search space. resume: records of sensors
     fixed by an earlier run with the same inputs (as given to ``on_fixed``); the run
     goes on after the last of them. workers: processes that score each ES population
-    (same answer). part_builder: where the lp optimizer builds the candidates of a
-    ground it plans in parts (None: in this process; ``headless/ray_engine.py``: on
+    (same answer). part_builder: where the lp and greedy optimizers build the candidates
+    of a ground they plan in parts (None: in this process; ``headless/ray_engine.py``: on
     Ray; same answer).
     """
 
@@ -96,7 +96,7 @@ class Run:
 
     def _optimizer(self, make_caster: CasterFactory, workers: int) -> Optimizer:
         if self.settings.optimizer == "greedy":
-            return Greedy()
+            return Greedy(self.part_builder)
         if self.settings.optimizer == "lp":
             return LPPlanner(self.part_builder)
         pool = None

@@ -260,8 +260,8 @@ def test_a_camera_with_a_resolution_keeps_8_more_bytes_a_cached_row():
 def test_lp_in_parts_holds_one_parts_matrix(monkeypatch):
     """The lp optimizer plans 840 points in parts of at most 300 (3 parts), or of at
     most a third of the nonzeros: its candidate and optimizer stages hold the largest
-    part's matrix (a third, with ``PART_IMBALANCE`` room), not the whole's; greedy
-    holds the whole matrix still."""
+    part's matrix (a third, with ``PART_IMBALANCE`` room), not the whole's; so does
+    greedy, but with a bound (the whole ground's LP), which holds the whole matrix."""
     scene = flat_scene(target=(0, 0, 60, 14), sensor=(0, 16, 60, 18))
     lp = OptimizeSettings(optimizer="lp")
     whole = run_estimate(scene, PAPER_CAMERA, lp)
@@ -276,7 +276,11 @@ def test_lp_in_parts_holds_one_parts_matrix(monkeypatch):
     )
     assert parts.stage_bytes("optimizer") < whole.stage_bytes("optimizer")
     greedy = run_estimate(scene, PAPER_CAMERA, replace(lp, optimizer="greedy"))
-    assert greedy.parts == 1
+    bounded = run_estimate(scene, PAPER_CAMERA, replace(lp, optimizer="greedy", bound=True))
+    assert greedy.parts == 3 and bounded.parts == 1
+    assert bounded.stage_bytes("optimizer") - greedy.stage_bytes("optimizer") == (
+        (whole.nonzeros - held) * budget.NONZERO_OPTIMIZER_BYTES["greedy"]
+    )
     monkeypatch.setattr(budget, "PART_POINTS", 10_000)
     monkeypatch.setattr(budget, "PART_NONZEROS", math.ceil(whole.nonzeros / 4))
     assert run_estimate(scene, PAPER_CAMERA, lp).parts == 4

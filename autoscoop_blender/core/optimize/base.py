@@ -14,7 +14,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Generator
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any, Protocol, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -22,6 +22,8 @@ from numpy.typing import NDArray
 from ..candidates import CandidateSet, build_candidates
 from ..model.sensors import SensorPose
 from ..problem import Problem
+
+T = TypeVar("T")
 
 
 @dataclass(frozen=True)
@@ -278,14 +280,24 @@ def candidates_until(
 ) -> Generator[Progress, None, CandidateSet | None]:
     """The problem's candidate set, reporting progress while it is built; None when
     ``stop`` is set before it is (the build is dropped: no plan can come of it)."""
-    build = build_candidates(problem)
+    return (yield from building(build_candidates(problem), problem, solution, stop))
+
+
+def building(
+    build: Generator[int, None, T],
+    problem: Problem,
+    solution: Solution,
+    stop: threading.Event | None = None,
+) -> Generator[Progress, None, T | None]:
+    """What ``build`` (a candidate set's build, whole or of a part) returns, reporting
+    progress while it works; None when ``stop`` is set first (the build is dropped)."""
     try:
         while True:
             try:
                 next(build)
             except StopIteration as done:
-                cands: CandidateSet = done.value
-                return cands
+                built: T = done.value
+                return built
             if stop is not None and stop.is_set():
                 return None
             yield solution.progress("search", problem.rho, stage="candidates")
