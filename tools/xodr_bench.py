@@ -5,8 +5,8 @@ Blender's data and the .blend written), roads, the targets' area (their union, w
 run covers) against the chosen lanes' own areas summed road by road, the sensor areas,
 then ``optimize`` with lp (the default) and greedy: sensors, masts, coverage, cost, the
 proven lower bound, seconds and the planning process's peak resident memory (its own
-``ru_maxrss``, which counts this driver's few hundred MB at the fork if larger than
-anything after its exec). Into ``bench/xodr.json``; the docs' benchmarks quote it.
+``ru_maxrss``; it would count this driver's memory at the fork only were that larger
+than anything after the exec). Into ``bench/xodr.json``; the docs' benchmarks quote it.
 """
 
 from __future__ import annotations
