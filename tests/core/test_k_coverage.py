@@ -305,8 +305,10 @@ class HandProblem:
         rows = list(HAND_K2.values())
         n = len(rows)
         self.need = np.full(8, 2, dtype=np.int32)
+        self.n_targets = 8
         self.rho = 1.0
         self.goal = 8
+        self.estimate = SimpleNamespace(parts=1)  # planned whole
         self.max_sensors = 16
         self.candidates = CandidateSet(
             positions=np.array([(10.0 * c, 0.0) for c in range(n)]),
