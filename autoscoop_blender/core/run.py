@@ -7,7 +7,8 @@ it and returns a ``Solution``; sensors within ``mast_join_m`` are grouped into m
 (``masts.py``); ``result.finish_layout`` evaluates the final layout in full and hands
 back a ``Result`` in world metres, with draped footprints and metrics, that holds no
 caster or grid. The sensors fixed so far are evaluated for that report while the
-search runs (``ahead.py``), so that a run stopped early writes its plan in seconds.
+search runs, and so are those of the lp's best plan so far, which it fixes at its end
+(``ahead.py``), so that a run stopped early writes its plan in seconds.
 
 The Blender operator time-slices the generator and the CLI draws a progress bar from
 it; both drain the same generator, so the same seed gives the same answer everywhere.
@@ -18,6 +19,7 @@ exactly as the uninterrupted one would have.
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
@@ -40,6 +42,8 @@ from .optimize.planner import LPPlanner
 from .problem import Problem
 from .result import Provenance, Result, finish_layout
 from .settings import OptimizeSettings
+
+log = logging.getLogger(__name__)
 
 # A picklable callable that builds the ray caster (in this process and in workers).
 CasterFactory = Callable[[], RayCaster]
@@ -126,7 +130,9 @@ class Run:
                 if progress.fixed is not None and self.on_fixed is not None:
                     self.on_fixed(self._record(progress.fixed))
                 yield progress
-                self.ahead.warm(self.solution.sensors, time.perf_counter() - self.t0)
+                self.ahead.warm(
+                    self.solution.sensors, time.perf_counter() - self.t0, self.solution.ahead
+                )
         finally:
             solve.close()
             self.close()
@@ -260,6 +266,8 @@ class Run:
     def _finish(self, poses: list[SensorPose], mast_of: list[int]) -> Result:
         """The final full evaluation of every sensor, and the result."""
         p, s = self.problem, self.solution
+        ready = sum(self.ahead.ready(pose, f.model) for pose, f in zip(poses, s.sensors))
+        log.info("report: %d of %d sensors evaluated ahead", ready, len(poses))
         done = [self.ahead.get(pose, f.model) for pose, f in zip(poses, s.sensors)]
         coverages = [cov for cov, _ in done]
         how = Provenance(

@@ -79,12 +79,13 @@ def fixed_at(problem, x, yaw):
     return FixedSensor(pose, 0.0, 0, 0, cov.covered, cov.covered)
 
 
-def test_the_work_ahead_follows_the_plan_and_keeps_to_its_share():
+def test_the_work_ahead_follows_the_plan_and_keeps_to_its_share(monkeypatch):
+    monkeypatch.setattr(ahead, "WARM_SLICE_S", 0.0)
     run = Run(road_scene(), box_caster([BOX]), PAPER_CAMERA, GREEDY)
     p = run.problem
     a, b = fixed_at(p, 20.0, 270.0), fixed_at(p, 60.0, 250.0)
     work = ReportAhead(p)
-    work.warm([a, b], elapsed_s=1e9)  # one sensor a call
+    work.warm([a, b], elapsed_s=1e9)  # one sensor a call when the slice is spent
     assert work.ready(a.pose, 0) and not work.ready(b.pose, 0)
     work.warm([b], elapsed_s=1e9)  # a left the plan: forgotten
     assert work.ready(b.pose, 0) and not work.ready(a.pose, 0)
@@ -96,3 +97,48 @@ def test_the_work_ahead_follows_the_plan_and_keeps_to_its_share():
     assert cov.pose == a.pose and np.array_equal(cov.covered, a.seen)
     assert pieces.footprint.area == pytest.approx(cov.footprint_m2)
     assert pieces.sensor_area == "SensorArea_N"
+
+
+def test_the_sensors_the_lp_would_fix_are_made_ready_after_those_fixed(monkeypatch):
+    """``planned`` (the lp's best plan so far) comes after the fixed sensors, and a
+    pose in neither is forgotten; with a slice to spare, several a call."""
+    monkeypatch.setattr(ahead, "WARM_SLICE_S", 0.0)
+    run = Run(road_scene(), box_caster([BOX]), PAPER_CAMERA, GREEDY)
+    p = run.problem
+    a, b, c = (fixed_at(p, x, 270.0) for x in (20.0, 40.0, 60.0))
+    work = ReportAhead(p)
+    work.warm([a], elapsed_s=1e9, planned=[(b.pose, 0)])
+    assert work.ready(a.pose, 0) and not work.ready(b.pose, 0)
+    work.warm([a], elapsed_s=1e9, planned=[(b.pose, 0)])
+    assert work.ready(b.pose, 0)
+    work.warm([a], elapsed_s=1e9, planned=[(c.pose, 0)])  # a better plan: b is gone
+    assert work.ready(c.pose, 0) and not work.ready(b.pose, 0)
+    monkeypatch.setattr(ahead, "WARM_SLICE_S", 1e9)
+    fresh = ReportAhead(p)
+    fresh.warm([], elapsed_s=1e9, planned=[(s.pose, 0) for s in (a, b, c)])
+    assert all(fresh.ready(s.pose, 0) for s in (a, b, c))
+
+
+def test_an_lp_run_stopped_early_finds_its_best_plan_evaluated_ahead(monkeypatch):
+    """The lp fixes its sensors only when its plan is done; the best plan so far is
+    made ready while it searches, so a run stopped once it is ready evaluates no
+    sensor for its report, and fixes no sensor outside that plan."""
+    monkeypatch.setattr(ahead, "WARM_SHARE", 1.0)
+    monkeypatch.setattr(ahead, "WARM_SLICE_S", 1e9)
+    lp = OptimizeSettings(optimizer="lp", rho=0.9, time_limit_s=120.0)
+    run = Run(road_scene(), box_caster([BOX]), PAPER_CAMERA, lp)
+    full = counted(run, "evaluate_full")
+    held: list = []
+    run.phase = "start"
+    for progress in run.steps():
+        run.phase = progress.phase
+        planned = run.solution.ahead
+        if not held and progress.best is not None and planned:
+            if all(run.ahead.ready(pose, m) for pose, m in planned):
+                held = list(planned)
+                assert run.stop_early()
+    res = run.result()
+    assert held, "the lp never held a plan"
+    assert res.interrupted is False and "Stopped early" in res.stop_reason
+    assert {(f.pose, f.model) for f in run.solution.sensors} <= set(held)
+    assert "report" not in full and "done" not in full

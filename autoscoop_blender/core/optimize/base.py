@@ -167,7 +167,10 @@ class Solution:
     the optimizer spent (pose evaluations, sight rays cast by them). state: what the
     optimizer needs to go on after the last sensor exactly as it would have (the ES:
     its random generator's state); JSON-ready, written to checkpoints. bound: what no
-    plan can beat, when it was proven.
+    plan can beat, when it was proven. ahead: the sensors (local pose, model) that an
+    optimizer which fixes them only once its plan is done (lp) would fix if stopped
+    now: its best plan so far, which the report's work ahead evaluates meanwhile
+    (``ahead.py``); empty for one that fixes them as it goes.
     """
 
     covered: NDArray[np.bool_]
@@ -178,6 +181,7 @@ class Solution:
     state: dict[str, Any] = field(default_factory=dict)
     bound: PlanBound | None = None
     need: NDArray[np.int32] | None = None
+    ahead: list[tuple[SensorPose, int]] = field(default_factory=list)
     n_covered: int = field(init=False)
     counts: NDArray[np.int32] = field(init=False)
 

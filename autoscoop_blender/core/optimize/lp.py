@@ -128,9 +128,10 @@ class PartInputs:
 @dataclass(frozen=True)
 class Incumbent:
     """A plan found while the bounds are still being proven (``masts_then_plan``):
-    its objective, reported at once as the best plan so far."""
+    its objective, reported at once as the best plan so far, and its candidates."""
 
     value: float
+    chosen: list[int]
 
 
 def instance(
@@ -314,7 +315,7 @@ def masts_then_plan(
     if not starts:
         return sites, None
     starts.sort(key=lambda c: plan_value(problem, cands, c.chosen))
-    yield Incumbent(plan_value(problem, cands, starts[0].chosen))
+    yield Incumbent(plan_value(problem, cands, starts[0].chosen), starts[0].chosen)
     best: list[int] | None = None
     best_value = math.inf
     for i, start in enumerate(starts if every_start else starts[:1]):
@@ -341,7 +342,7 @@ def masts_then_plan(
         )  # fmt: skip
         if value < best_value:
             best, best_value = chosen, value
-            yield Incumbent(value)
+            yield Incumbent(value, chosen)
     return sites, best
 
 
@@ -390,6 +391,17 @@ def milp_candidates(inst: CoverInstance, site_of: I64, used: I64, start: list[in
     return np.union1d(order[rank < per_site], start).astype(np.int64)
 
 
+def hold_best(
+    problem: Problem, cands: CandidateSet, solution: Solution, plans: list[list[int]]
+) -> float:
+    """The objective of the cheapest of ``plans`` (candidate lists), whose sensors the
+    solution holds as those it would fix if stopped now (``Solution.ahead``)."""
+    values = [plan_value(problem, cands, plan) for plan in plans]
+    i = int(np.argmin(values))
+    solution.ahead = [(cands.pose(problem, c), int(cands.model[c])) for c in plans[i]]
+    return values[i]
+
+
 def prove_bound(
     problem: Problem,
     cands: CandidateSet,
@@ -414,7 +426,7 @@ def prove_bound(
     mc, sc = mast_aware_costs(problem, cands, len(cands))
     greedy_masts = complete(Cover(inst), every, cands.position, mc, sc)
     greedies = [greedy, greedy_masts]
-    best = min(plan_value(problem, cands, g.chosen) for g in greedies)
+    best = hold_best(problem, cands, solution, [g.chosen for g in greedies])
     yield solution.progress("search", problem.rho, best=best, stage="greedy")
     # The LP counts sensors (unit costs), or with models of different costs, prices
     # each candidate at its model's cost; the progress shows the cost it proves.
@@ -475,7 +487,8 @@ def prove_bound(
                 sensors = unit * math.ceil(step.bound - 1e-6)
                 so_far = s.mast_cost * joint.sites.bound + sensors
         if isinstance(step, Incumbent):  # a plan on the fewest masts, known at once
-            best = min(best, step.value)
+            if step.value < best:
+                best = hold_best(problem, cands, solution, [step.chosen])
             if joint is not None:
                 joint.best = best
         if joint is not None and joint.lp is not None and joint.sites is not None and not apart:
@@ -484,8 +497,8 @@ def prove_bound(
             so_far = apart.objective(s.objective, s.mast_cost, s.sensor_cost)
         yield solution.progress("search", problem.rho, bound=so_far, best=best, stage="bounds")
     plan_bound = _plan_bound(lp, sites, cands, problem)
-    if on_sites:
-        best = min(best, plan_value(problem, cands, on_sites))
+    if on_sites and plan_value(problem, cands, on_sites) < best:
+        best = hold_best(problem, cands, solution, [on_sites])
     if joint is not None and lp.pi is not None:
         more = _joint_bound(
             problem, cands, inst, lp, plan_bound, best, joint.solved, deadline, stop
@@ -673,8 +686,9 @@ def prove_and_plan(
             plans.append(on_lp.chosen)
     plans = plans or [greedies[0].chosen]  # short of the goal: the most greedy covers
     yield solution.progress(
-        "search", problem.rho, bound=lower, best=min(map(value, plans)), stage="plans"
-    )
+        "search", problem.rho, bound=lower, best=hold_best(problem, cands, solution, plans),
+        stage="plans",
+    )  # fmt: skip
     price = sensor_price(problem, cands) if s.objective == "cost" else 1.0
     # Plans rounded from the LP are rounded for the sensors alone, so only where masts
     # cost nothing. Where they do, they never won: on two_routes 128-146 against 74 at
@@ -695,8 +709,9 @@ def prove_and_plan(
             break
         plans.append(plan)
         yield solution.progress(
-            "search", problem.rho, bound=lower, best=min(map(value, plans)), stage="plans"
-        )
+            "search", problem.rho, bound=lower, best=hold_best(problem, cands, solution, plans),
+            stage="plans",
+        )  # fmt: skip
     if log.isEnabledFor(logging.INFO):
         log.info(
             "plans: greedy, on the masts and on the LP's columns %s, rounded from the LP %s"
@@ -721,6 +736,7 @@ def bound_only(problem: Problem, solution: Solution) -> Generator[Progress, None
     s = problem.settings
     deadline = None if s.time_limit_s is None else time.perf_counter() + s.time_limit_s
     bound, *_ = yield from prove_bound(problem, cands, inst, solution, deadline)
+    solution.ahead = []  # the plan is another optimizer's
     return bound
 
 
