@@ -267,7 +267,10 @@ class Run:
         """The final full evaluation of every sensor, and the result."""
         p, s = self.problem, self.solution
         ready = sum(self.ahead.ready(pose, f.model) for pose, f in zip(poses, s.sensors))
-        log.info("report: %d of %d sensors evaluated ahead", ready, len(poses))
+        log.info(
+            "report: %d of %d sensors evaluated ahead, in %.1f s of work ahead",
+            ready, len(poses), self.ahead.spent_s,
+        )  # fmt: skip
         done = [self.ahead.get(pose, f.model) for pose, f in zip(poses, s.sensors)]
         coverages = [cov for cov, _ in done]
         how = Provenance(

@@ -180,7 +180,9 @@ def test_the_command_line_writes_the_plan_it_was_stopped_with(tmp_path, how):
 # the best plan found by then (no more are rounded), and the run's report evaluates
 # every sensor afresh. Measured 2026-11-25 on two_routes (2 cores, beside another
 # run), stop_early in the bounds stage: 2.9 s to the written plan (0.25 s to end the
-# solves, 1.8 s of report, 0.8 s of writing); 14 to 16 s before.
+# solves, 1.8 s of report, 0.8 s of writing); 14 to 16 s before. On 2026-11-29, with
+# the best plan's sensors evaluated while the lp searches (``core/ahead.py``), 1.7 to
+# 1.9 s to the process's end, where it was 2.3 to 2.5 s (and 5.1 s in a CI run).
 @pytest.mark.parametrize("how", ["SIGINT", "SIGTERM"])
 def test_lp_on_the_sample_keeps_its_best_plan(tmp_path, how):
     """A user's Ctrl-C (or ``timeout``'s SIGTERM) two seconds after the lp has its
