@@ -166,13 +166,19 @@ def test_the_re_plans_time_left_is_the_time_to_the_deadline(small_parts):
     run = Run(road(), box_caster(WALL), PAPER_CAMERA, settings(rho=0.9, time_limit_s=600.0))
     limit = planner.time_limit(run.problem.settings, run.problem.estimate.parts)
     deadline = planner.search_deadline(run.problem.t0, limit)
-    seams = []
+    seams, bounds = [], []
     for p in run.steps():
         if p.stage == "seams":
             seams.append((p.eta_s, deadline - time.perf_counter()))
+        if p.parts:
+            bounds.append((p.part, p.bound))
     assert seams
     for eta, left in seams:
         assert left - 1.0 <= eta <= left + 1.0
+    # Before its first part is solved nothing is proven, and no bound is shown
+    # (a "bound 0" proves nothing); from the last part on, one is.
+    assert bounds[0] == (1, None) and all(b is None or b > 0 for _, b in bounds)
+    assert bounds[-1][0] == 3 and bounds[-1][1] > 0
 
 
 def test_a_stopped_run_keeps_the_parts_done_and_resume_finishes_it(small_parts):

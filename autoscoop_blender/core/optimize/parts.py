@@ -731,12 +731,13 @@ def solve_in_parts(
         if eta is not None and deadline is not None:  # the run ends by its deadline
             eta = min(eta, max(0.0, deadline - t0 - spent))
         masts = len({(f.pose.x, f.pose.y) for f in solution.sensors[first:]})
+        bound = bound_now().objective(s.objective, s.mast_cost, s.sensor_cost)
         return replace(
             p,
             stage=p.stage or stage,
             part=k + 1,
             parts=n_parts,
-            bound=bound_now().objective(s.objective, s.mast_cost, s.sensor_cost),
+            bound=bound if bound > 0 else None,  # 0: nothing proven yet, not shown
             best=None,
             plan=(len(solution.sensors) - first, masts),
             eta_s=eta,
