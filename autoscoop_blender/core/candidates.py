@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Generator
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -104,17 +105,75 @@ class PartCandidates:
     site_share: F64
 
 
+def near_positions(problem: Problem, points: I64, reach_m: float) -> I64:
+    """The positions (indices into the problem's, sorted) within ``reach_m`` of one
+    of the target points ``points``: those a part's candidates stand at."""
+    xy = problem.grid.target_xy[points]
+    dist, _ = cKDTree(xy).query(problem.space.positions, distance_upper_bound=reach_m)
+    return np.flatnonzero(np.isfinite(dist))
+
+
 def build_part(
-    problem: Problem, points: I64, reach_m: float
+    problem: Problem, points: I64, reach_m: float, shared: SharedPositions | None = None
 ) -> Generator[int, None, PartCandidates]:
     """The candidates of the part of the target with ordinals ``points`` (sorted):
     every position within ``reach_m`` (the longest range) of one of them, each
     candidate covering a point there (see ``build_candidates``; yields the same).
-    Only the part's matrix is held: its memory follows the part, not the ground."""
-    xy = problem.grid.target_xy[points]
-    dist, _ = cKDTree(xy).query(problem.space.positions, distance_upper_bound=reach_m)
-    near = np.flatnonzero(np.isfinite(dist))
-    return (yield from _build(problem, points, near))
+    Only the part's matrix is held: its memory follows the part, not the ground.
+    shared: what the parts before cast at positions this part reaches too."""
+    near = near_positions(problem, points, reach_m)
+    return (yield from _build(problem, points, near, shared))
+
+
+class SharedPositions:
+    """What ``cover_many`` gave (after ``dominated``) at the positions that more than
+    one part reaches, kept from the first of those parts' builds until the last, so
+    that each position's rays are cast once: on Town01's 3 parts, 11,686 position
+    builds were of 6,964 positions (2026-11-29). The parts are built in order
+    (``at(k)`` before part k); what is kept is each position's covered orientations
+    as bits, dropped once the last part that reaches it has taken it.
+
+    near: per part, the positions it reaches (``near_positions``)."""
+
+    def __init__(self, near: list[I64], n_positions: int) -> None:
+        self.last = np.full(n_positions, -1, dtype=np.int64)
+        for k, positions in enumerate(near):
+            self.last[positions] = k
+        self.part = 0
+        # (position, model) -> (covered rows, their bits, points, ordinals, dropped, nnz)
+        self._kept: dict[tuple[int, int], tuple[Any, ...]] = {}
+
+    def at(self, k: int) -> None:
+        """Part k is built next: what no later part reaches is dropped."""
+        self.part = k
+        for key in [key for key in self._kept if self.last[key[0]] < k]:
+            del self._kept[key]
+
+    def keep(
+        self, i: int, m: int, covered: NDArray[np.bool_], ordinal: I64, dropped: tuple[int, int]
+    ) -> None:
+        """Position i's ``cover_many`` for model m (``covered`` (O, P) after
+        ``dominated``, ``ordinal`` (P,)) and its (dropped, their nonzeros), when a
+        later part reaches it."""
+        if self.last[i] > self.part:
+            rows = np.flatnonzero(covered.any(axis=1))
+            bits = np.packbits(covered[rows], axis=1)
+            self._kept[(i, m)] = (len(covered), rows, bits, ordinal, dropped)
+
+    def take(self, i: int, m: int) -> tuple[NDArray[np.bool_], I64, tuple[int, int]] | None:
+        """What ``keep`` kept of position i and model m, or None."""
+        got = self._kept.get((i, m))
+        if got is None:
+            return None
+        if self.last[i] <= self.part:
+            del self._kept[(i, m)]
+        n, rows, bits, ordinal, dropped = got
+        covered = np.zeros((n, len(ordinal)), dtype=bool)
+        covered[rows] = np.unpackbits(bits, axis=1, count=len(ordinal)).astype(bool)
+        return covered, ordinal, dropped
+
+    def __len__(self) -> int:
+        return len(self._kept)
 
 
 def build_on_sites(problem: Problem, sites: I64) -> Generator[int, None, CandidateSet]:
@@ -125,9 +184,12 @@ def build_on_sites(problem: Problem, sites: I64) -> Generator[int, None, Candida
     return (yield from _build(problem, every, np.asarray(sites, dtype=np.int64))).cands
 
 
-def _build(problem: Problem, points: I64, near: I64) -> Generator[int, None, PartCandidates]:
+def _build(
+    problem: Problem, points: I64, near: I64, shared: SharedPositions | None = None
+) -> Generator[int, None, PartCandidates]:
     """Candidates at the positions ``near`` (indices into the problem's) over the
-    target points ``points`` (sorted ordinals; the matrix's columns, in order)."""
+    target points ``points`` (sorted ordinals; the matrix's columns, in order);
+    shared: what was cast at them for a part before, and is kept for one after."""
     models = problem.models
     positions = problem.space.positions
     angles = tuple(model_orientations(m) for m in models)
@@ -152,14 +214,22 @@ def _build(problem: Problem, points: I64, near: I64) -> Generator[int, None, Par
     for m, (model, ang) in enumerate(zip(models, angles)):
         rots = np.array([frame(p, y) for p, y in ang])
         for j, i in enumerate(near):
-            x, y = positions[i]
-            pose = problem.pose(x, y, ang[0, 0], ang[0, 1], m)
-            covered, ordinal = problem.probe.cover_many(model, pose, rots)
-            if prune:
-                drop = dominated(covered)
-                n_dropped += int(drop.sum())
-                dropped_nonzeros += int(covered[drop].sum())
-                covered[drop] = False
+            got = None if shared is None else shared.take(int(i), m)
+            if got is None:
+                x, y = positions[i]
+                pose = problem.pose(x, y, ang[0, 0], ang[0, 1], m)
+                covered, ordinal = problem.probe.cover_many(model, pose, rots)
+                dropped = (0, 0)
+                if prune:
+                    drop = dominated(covered)
+                    dropped = (int(drop.sum()), int(covered[drop].sum()))
+                    covered[drop] = False
+                if shared is not None:
+                    shared.keep(int(i), m, covered, ordinal, dropped)
+            else:
+                covered, ordinal, dropped = got
+            n_dropped += dropped[0]
+            dropped_nonzeros += dropped[1]
             here = local[ordinal]
             here32 = here.astype(np.int32)
             mine = covered if whole else covered & (here >= 0)

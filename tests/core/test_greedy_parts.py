@@ -45,11 +45,11 @@ def test_greedy_in_parts_holds_one_part_at_a_time_and_meets_the_goal(monkeypatch
     held: list[weakref.ref] = []
     built: list[np.ndarray] = []
 
-    def spy(problem, points, reach_m):
+    def spy(problem, points, reach_m, *shared):
         gc.collect()
         assert all(ref() is None for ref in held), "a part's candidates outlived it"
         built.append(points)
-        part = yield from real(problem, points, reach_m)
+        part = yield from real(problem, points, reach_m, *shared)
         held.append(weakref.ref(part))
         return part
 
@@ -75,9 +75,9 @@ def test_greedy_resumed_after_its_parts_builds_none_and_keeps_the_plan(monkeypat
     built = []
     real = parts_module.build_part
 
-    def spy(problem, points, reach_m):
+    def spy(problem, points, reach_m, *shared):
         built.append(points)
-        return real(problem, points, reach_m)
+        return real(problem, points, reach_m, *shared)
 
     monkeypatch.setattr(parts_module, "build_part", spy)
     resumed = Run(road(), box_caster(WALL), PAPER_CAMERA, s, resume=records).result()

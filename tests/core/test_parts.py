@@ -33,6 +33,7 @@ from autoscoop_blender.core.optimize.base import (
     newly_covered,
 )
 from autoscoop_blender.core.optimize.bound import SiteSolution, parts_of
+from autoscoop_blender.core.optimize.parts import LocalBuilder
 from autoscoop_blender.core.optimize.cover import CoverInstance
 from autoscoop_blender.core.problem import Problem
 from autoscoop_blender.core.run import Run
@@ -109,6 +110,43 @@ def test_the_parts_candidates_are_the_whole_grounds_split_by_point(small_parts):
         assert np.all((part.site_share > 0) & (part.site_share <= 1))
     np.testing.assert_array_equal(got, whole.matrix.toarray().astype(np.int32))
     np.testing.assert_allclose(share, 1.0)
+
+
+def test_a_position_two_parts_reach_is_cast_once_and_builds_the_same(small_parts):
+    """The local builder keeps what a position shared with a later part gave: each
+    (position, model) is cast once over the three parts, each part's candidates are
+    those built afresh, and nothing is kept after the last part."""
+    problem = Problem(road(), box_caster(WALL)(), PAPER_CAMERA, settings())
+    split = parts_of(problem.grid.target_xy, 3)
+    parts = [np.flatnonzero(split == k) for k in range(3)]
+    fresh = [drain(build_part(problem, points, PAPER_CAMERA.range_m)) for points in parts]
+    near = [set(f.cands.position.tolist()) for f in fresh]
+    assert near[0] & near[1] and near[1] & near[2]  # the parts share positions
+    calls = []
+    real = problem.probe.cover_many
+
+    def counted(model, pose, rots):
+        calls.append((pose.x, pose.y))
+        return real(model, pose, rots)
+
+    problem.probe.cover_many = counted
+    builder = LocalBuilder()
+    builder.start(problem, parts, PAPER_CAMERA.range_m)
+    for k, want in enumerate(fresh):
+        got = drain(builder.build(k))
+        for name in ("position", "orientation", "model", "share", "sites", "site_share"):
+            a, b = getattr(got, name, None), getattr(want, name, None)
+            if a is None:
+                a, b = getattr(got.cands, name), getattr(want.cands, name)
+            np.testing.assert_array_equal(a, b)
+        assert (got.cands.matrix != want.cands.matrix).nnz == 0
+        assert got.cands.dominated == want.cands.dominated
+        assert got.cands.dominated_nonzeros == want.cands.dominated_nonzeros
+    # Every position within range of some point, once (ranges by brute force).
+    xy, targets = problem.space.positions, problem.grid.target_xy
+    gap = np.hypot(*(xy[:, None, :] - targets[None, :, :]).transpose(2, 0, 1)).min(axis=1)
+    assert len(calls) == len(set(calls)) == np.count_nonzero(gap <= PAPER_CAMERA.range_m)
+    assert len(builder.shared) == 0
 
 
 @pytest.mark.parametrize("k", [1, 2])
@@ -191,9 +229,9 @@ def test_a_stopped_run_keeps_the_parts_done_and_resume_finishes_it(small_parts):
     built = []
     real = parts_module.build_part
 
-    def spy(problem, points, reach_m):
+    def spy(problem, points, reach_m, *shared):
         built.append(points)
-        return real(problem, points, reach_m)
+        return real(problem, points, reach_m, *shared)
 
     parts_module.build_part = spy
     try:

@@ -60,7 +60,14 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import sparse
 
-from ..candidates import CandidateSet, PartCandidates, build_on_sites, build_part
+from ..candidates import (
+    CandidateSet,
+    PartCandidates,
+    SharedPositions,
+    build_on_sites,
+    build_part,
+    near_positions,
+)
 from ..problem import Problem
 from .base import (
     FixedSensor,
@@ -654,16 +661,20 @@ class PartBuilder(Protocol):
 
 class LocalBuilder:
     """Each part's candidates built here, when the planner asks for it: one part's
-    matrix held at a time."""
+    matrix held at a time, and what the positions that later parts reach too gave
+    (``candidates.SharedPositions``)."""
 
     def start(self, problem: Problem, parts: list[I64], reach_m: float) -> None:
         self.problem, self.parts, self.reach_m = problem, parts, reach_m
+        near = [near_positions(problem, points, reach_m) for points in parts]
+        self.shared = SharedPositions(near, len(problem.space.positions))
 
     def build(self, k: int) -> Generator[int, None, PartCandidates]:
-        return build_part(self.problem, self.parts[k], self.reach_m)
+        self.shared.at(k)
+        return build_part(self.problem, self.parts[k], self.reach_m, self.shared)
 
     def close(self) -> None:
-        pass
+        self.shared = SharedPositions([], 0)
 
 
 def solve_in_parts(
