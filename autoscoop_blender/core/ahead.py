@@ -65,9 +65,9 @@ class ReportAhead:
     ) -> None:
         """Make ready the plan's ``sensors``, then the sensors it would fix if stopped
         now (``planned``: (pose, model), ``Solution.ahead``), that are not, for
-        ``WARM_SLICE_S`` (at least one), unless the work ahead has taken ``WARM_SHARE`` of the run's ``elapsed_s``
-        already; poses in neither are forgotten (a better plan, or a part re-planned,
-        moves them)."""
+        ``WARM_SLICE_S`` (at least one), unless the work ahead has taken
+        ``WARM_SHARE`` of the run's ``elapsed_s`` already; poses in neither are
+        forgotten (a better plan, or a part re-planned, moves them)."""
         if self.spent_s > WARM_SHARE * elapsed_s:
             return
         wanted = [(f.pose, f.model) for f in sensors] + list(planned)

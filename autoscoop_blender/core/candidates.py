@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Generator
 from dataclasses import dataclass
-from typing import Any
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -125,6 +125,18 @@ def build_part(
     return (yield from _build(problem, points, near, shared))
 
 
+class _Kept(NamedTuple):
+    """A position's ``cover_many`` for one model, kept: of its ``orientations``, the
+    ``rows`` that cover something, as ``bits`` (np.packbits of their (P,) rows), over
+    the points ``ordinal`` (P,); ``dropped``: (orientations dominated, their nonzeros)."""
+
+    orientations: int
+    rows: I64
+    bits: NDArray[np.uint8]
+    ordinal: I64
+    dropped: tuple[int, int]
+
+
 class SharedPositions:
     """What ``cover_many`` gave (after ``dominated``) at the positions that more than
     one part reaches, kept from the first of those parts' builds until the last, so
@@ -140,8 +152,7 @@ class SharedPositions:
         for k, positions in enumerate(near):
             self.last[positions] = k
         self.part = 0
-        # (position, model) -> (covered rows, their bits, points, ordinals, dropped, nnz)
-        self._kept: dict[tuple[int, int], tuple[Any, ...]] = {}
+        self._kept: dict[tuple[int, int], _Kept] = {}  # by (position, model)
 
     def at(self, k: int) -> None:
         """Part k is built next: what no later part reaches is dropped."""
@@ -158,7 +169,7 @@ class SharedPositions:
         if self.last[i] > self.part:
             rows = np.flatnonzero(covered.any(axis=1))
             bits = np.packbits(covered[rows], axis=1)
-            self._kept[(i, m)] = (len(covered), rows, bits, ordinal, dropped)
+            self._kept[(i, m)] = _Kept(len(covered), rows, bits, ordinal, dropped)
 
     def take(self, i: int, m: int) -> tuple[NDArray[np.bool_], I64, tuple[int, int]] | None:
         """What ``keep`` kept of position i and model m, or None."""
@@ -167,10 +178,9 @@ class SharedPositions:
             return None
         if self.last[i] <= self.part:
             del self._kept[(i, m)]
-        n, rows, bits, ordinal, dropped = got
-        covered = np.zeros((n, len(ordinal)), dtype=bool)
-        covered[rows] = np.unpackbits(bits, axis=1, count=len(ordinal)).astype(bool)
-        return covered, ordinal, dropped
+        covered = np.zeros((got.orientations, len(got.ordinal)), dtype=bool)
+        covered[got.rows] = np.unpackbits(got.bits, axis=1, count=len(got.ordinal)).astype(bool)
+        return covered, got.ordinal, got.dropped
 
     def __len__(self) -> int:
         return len(self._kept)
