@@ -33,8 +33,8 @@ from autoscoop_blender.core.optimize.base import (
     newly_covered,
 )
 from autoscoop_blender.core.optimize.bound import SiteSolution, parts_of
-from autoscoop_blender.core.optimize.parts import LocalBuilder
 from autoscoop_blender.core.optimize.cover import CoverInstance
+from autoscoop_blender.core.optimize.parts import LocalBuilder
 from autoscoop_blender.core.problem import Problem
 from autoscoop_blender.core.run import Run
 from autoscoop_blender.core.settings import OptimizeSettings
