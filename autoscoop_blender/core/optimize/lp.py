@@ -52,6 +52,7 @@ from scipy import sparse
 
 from .. import budget
 from ..candidates import CandidateSet, sensor_price
+from ..model.sensors import SensorPose
 from ..problem import Problem
 from .base import (
     PlanBound,
@@ -398,8 +399,15 @@ def hold_best(
     solution holds as those it would fix if stopped now (``Solution.ahead``)."""
     values = [plan_value(problem, cands, plan) for plan in plans]
     i = int(np.argmin(values))
-    solution.ahead = [(cands.pose(problem, c), int(cands.model[c])) for c in plans[i]]
+    solution.ahead = sensors_of(problem, cands, plans[i])
     return values[i]
+
+
+def sensors_of(
+    problem: Problem, cands: CandidateSet, plan: list[int]
+) -> list[tuple[SensorPose, int]]:
+    """(pose, model) of each candidate of ``plan``, in its order."""
+    return [(cands.pose(problem, c), int(cands.model[c])) for c in plan]
 
 
 def prove_bound(
@@ -844,7 +852,10 @@ def solve_whole(
         return solution
     chosen, bound, _ = yield from prove_and_plan(problem, cands, inst, solution, deadline, stop)
     solution.bound = bound
-    for c in in_gain_order(inst, chosen):
+    order = in_gain_order(inst, chosen)
+    # In the order they are fixed: those the goal leaves unfixed last, made ready last.
+    solution.ahead = sensors_of(problem, cands, order)
+    for c in order:
         if problem.reached(solution.n_covered):
             break
         if len(solution.sensors) >= problem.max_sensors:
@@ -852,6 +863,7 @@ def solve_whole(
             return solution
         sensor = fix_candidate(problem, solution, cands, c)
         yield solution.progress("fixed", problem.rho, fixed=sensor, stage="fixing")
+    solution.ahead = []  # the plan is fixed: the report needs its sensors alone
     late = stop.is_set() or (deadline is not None and time.perf_counter() > deadline)
     if problem.reached(solution.n_covered):
         solution.stop_reason = StopReason.reached(problem.rho, early=late)
