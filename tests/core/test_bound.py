@@ -1022,3 +1022,32 @@ def test_limit_to_gives_the_next_run_the_time_left(ran_s):
     assert ran_s + 5.0 - (time.perf_counter() - before) <= h.limit <= ran_s + 5.0
     bound.limit_to(h, before - 1.0)  # past: the least limit HiGHS takes, not a negative one
     assert h.limit == pytest.approx(ran_s + 0.01)
+
+
+def test_a_steep_tangent_gets_lines_at_the_goals_below_that_hold_there():
+    """Candidate 0 covers points 0-15; points 16-19 each have a candidate of their
+    own (cost 1 each). At goal 19 the LP is 4 (candidate 0 and three of the four), its
+    goal dual 1: the tangent 1 g - 15 says nothing below 15 points, where the LP is
+    g / 16 (candidate 0 in part). The lines asked at 12 and 8 prove 12/16 and 8/16
+    there, and hold at every goal (linprog over every candidate, goals 1-20)."""
+    rows = [list(range(16)), [16], [17], [18], [19]]
+    inst = instance(rows, 20, 19)
+    cost = np.ones(5)
+    sol = drain(
+        cover_lp(inst, cost, np.arange(5), np.array([0]), integral=False, also_at=(12, 8))
+    )
+    assert sol.value == pytest.approx(4.0)
+    assert sol.slope == pytest.approx(1.0, rel=1e-5)
+    assert sol.slope * 12 - sol.intercept < 0  # the tangent proves nothing at 12
+    assert len(sol.more_lines) == 2 and len(sol.more_pi) == 2
+    for goal, (a, b) in zip((12, 8), sol.more_lines):
+        assert a * goal - b == pytest.approx(goal / 16, abs=1e-5)
+    for g in range(1, 21):
+        exact = full_lp(CoverInstance(inst.matrix, g), cost)
+        assert all(a * g - b <= exact + 1e-9 for a, b in sol.more_lines)
+    # A shallow tangent (every point as dear) seeks none: 20 points, one candidate each.
+    flat = instance([[p] for p in range(20)], 20, 19)
+    plain = drain(
+        cover_lp(flat, np.ones(20), np.arange(20), np.array([0]), integral=False, also_at=(18,))
+    )
+    assert plain.value == pytest.approx(19.0) and plain.more_lines == ()

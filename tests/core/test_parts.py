@@ -16,7 +16,12 @@ from numpy.typing import NDArray
 from scipy import sparse
 
 from autoscoop_blender.core import budget
-from autoscoop_blender.core.candidates import build_candidates, build_part
+from autoscoop_blender.core.candidates import (
+    CandidateSet,
+    PartCandidates,
+    build_candidates,
+    build_part,
+)
 from autoscoop_blender.core.coverage.base import place
 from autoscoop_blender.core.coverage.targeted import TargetedEvaluator
 from autoscoop_blender.core.geom.grid import GroundGrid
@@ -180,6 +185,101 @@ def test_the_part_wise_bound_never_passes_the_whole_grounds(k, monkeypatch):
     np.testing.assert_array_equal(counts, parts.n_covered)
     assert np.count_nonzero(counts >= k) >= math.ceil(0.9 * len(counts))
     assert parts.stop_reason.startswith("Reached the goal")
+
+
+def _ledger_part(rows: list[list[int]], n_points: int, share: list[float]) -> PartCandidates:
+    """Candidates 0.. at positions 0.. (one orientation each, of 2) covering ``rows``."""
+    n = len(rows)
+    indptr = np.cumsum([0, *map(len, rows)])
+    indices = np.concatenate([np.asarray(r, dtype=np.int32) for r in rows])
+    matrix = sparse.csr_matrix((np.ones(len(indices), np.float32), indices, indptr), (n, n_points))
+    cands = CandidateSet(
+        positions=np.zeros((4, 2)),
+        angles=(np.zeros((2, 2)),),
+        models=(PAPER_CAMERA,),
+        position=np.arange(n, dtype=np.int64),
+        orientation=np.ones(n, dtype=np.int64),
+        model=np.zeros(n, dtype=np.int64),
+        matrix=matrix,
+    )
+    return PartCandidates(cands, np.array(share), np.arange(n), np.ones(n))
+
+
+def test_the_ledger_hands_on_what_a_parts_line_left_of_a_cost():
+    """Candidate 0 covers 2 points in part A, 1 in B and 1 in C (shares 1/2, 1/4, 1/4);
+    candidate 1 only A's. A's duals price candidate 0 at 0.2 (of its 0.5) and
+    candidate 1 at 0.9 (above its 1): A takes 0.2 and 1. B gets 0.8 x 1/2 of candidate
+    0 (more than its share 0.25), its duals take 0.1, and C the 0.7 left: the three
+    add up to 1, the candidate's cost. (Figures by hand.)"""
+    ledger = parts_module.CostLedger()
+    a = _ledger_part([[0, 1], [1, 2]], 3, [0.5, 1.0])
+    cost_a = ledger.costs(a, 1.0)
+    np.testing.assert_allclose(cost_a, [0.5, 1.0])  # the first part's are its shares
+    ledger.take(a, cost_a, a.cands.matrix, [np.array([0.1, 0.1, 1.2])])
+    b = _ledger_part([[0]], 2, [0.25])
+    cost_b = ledger.costs(b, 1.0)
+    np.testing.assert_allclose(cost_b, [0.4])
+    ledger.take(b, cost_b, b.cands.matrix, [np.array([0.1, 5.0])])
+    c = _ledger_part([[1]], 2, [0.25])
+    cost_c = ledger.costs(c, 1.0)
+    np.testing.assert_allclose(cost_c, [0.7])
+    assert 0.2 + 0.1 + cost_c[0] == pytest.approx(1.0)  # taken by A, by B, C's
+    # A part with no line takes nothing: the parts after it share what is left.
+    ledger = parts_module.CostLedger()
+    ledger.take(a, ledger.costs(a, 1.0), a.cands.matrix, [])
+    np.testing.assert_allclose(ledger.costs(b, 1.0), [0.5])
+
+
+def test_a_parts_lp_prices_each_candidate_at_most_at_what_the_parts_before_left(
+    small_parts, monkeypatch
+):
+    """On the road in 3 parts: each part's sensors LP prices a candidate at no more than
+    its cost less what the lines of the parts before took of it (what their duals
+    price it at, at most their cost); a part after the first never gets less than its
+    share and some candidates get more; and a candidate a part before fixed still
+    covers its points in the LP of the part after (a plan of the whole ground may use
+    it there)."""
+    taken: dict[tuple[int, int, int], float] = {}
+    checked: list[int] = []
+    fixed_rows: list[NDArray[np.int64]] = []
+    costs, take, real = (
+        parts_module.CostLedger.costs,
+        parts_module.CostLedger.take,
+        parts_module.prove_and_plan,
+    )
+
+    def keys(part):
+        c = part.cands
+        return list(zip(c.position.tolist(), c.orientation.tolist(), c.model.tolist()))
+
+    def spy_costs(self, part, unit):
+        out = costs(self, part, unit)
+        before = np.array([taken.get(key, 0.0) for key in keys(part)])
+        assert np.all(out + before <= 1.0 + 1e-9)
+        assert np.all(out >= part.share - 1e-12)
+        checked.append(int(np.count_nonzero(out > part.share + 1e-6)))
+        return out
+
+    def spy_take(self, part, cost, matrix, pis):
+        # What the lines' duals price each candidate at, the most of them, by hand.
+        priced = np.max([matrix @ pi for pi in pis], axis=0)
+        for key, value in zip(keys(part), np.minimum(cost, priced)):
+            taken[key] = taken.get(key, 0.0) + float(value)
+        return take(self, part, cost, matrix, pis)
+
+    def spy(problem, cands, inst, solution, deadline, stop, part):
+        fixed = parts_module.taken_candidates(cands, solution.sensors)
+        fixed_rows.append(np.diff(part.lp_inst.matrix.indptr)[fixed])
+        return (yield from real(problem, cands, inst, solution, deadline, stop, part))
+
+    monkeypatch.setattr(parts_module.CostLedger, "costs", spy_costs)
+    monkeypatch.setattr(parts_module.CostLedger, "take", spy_take)
+    monkeypatch.setattr(parts_module, "prove_and_plan", spy)
+    Run(road(), box_caster(WALL), PAPER_CAMERA, settings(rho=0.9)).result()
+    assert len(checked) == len(fixed_rows) == 3
+    assert checked[0] == 0 and checked[1] > 0 and checked[2] > 0
+    rows = np.concatenate(fixed_rows)
+    assert len(rows) > 0 and np.all(rows > 0)
 
 
 def test_the_time_left_never_passes_the_runs_limit(small_parts):

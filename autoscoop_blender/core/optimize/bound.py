@@ -90,6 +90,10 @@ CANCEL_WAIT_S = 0.3
 SOLVE_THREAD = "autoscoop-solve"
 # A bound is lowered by this much (relative) against the solver's tolerances.
 SAFETY = 1e-6
+# The most one goal's solve may take in ``_lines_at``, s; and how much of the LP's
+# bound its tangent must lose by the lowest goal asked for them to be sought.
+GOAL_SOLVE_S = 10.0
+STEEP = 0.5
 # The weight of the dual steps' best point in the duals that price new columns
 # (``cover_lp``; 0: the restricted LP's own). On two_routes' LP alone 0.5 took 21 rounds,
 # 41 s, and 0 took 27 rounds, 78 s; smoothed towards the best point of all the steps
@@ -359,6 +363,13 @@ class LPSolution:
     # (N,) the last round's point duals (None: solved in parts), where the joint
     # bound's LP starts (``joint.py``).
     pi: F64 | None = None
+    # (N,) the point duals whose Lagrangian bound is the line (slope, intercept); what
+    # they price each candidate at is what a part's line takes of its cost
+    # (``parts.CostLedger``). None: no line.
+    line_pi: F64 | None = None
+    # Lines at other goals (``cover_lp``'s ``also_at``), each with its point duals.
+    more_lines: tuple[tuple[float, float], ...] = ()
+    more_pi: tuple[F64, ...] = ()
 
     def integer_bound(self) -> int:
         """The bound on an integer objective: the next integer at or above it."""
@@ -475,13 +486,17 @@ class DualPolish:
         intercept = excess + paid + SAFETY
         return slope * self.goal - intercept, slope, intercept
 
-    def better(self, best: float, line: tuple[float, float]) -> tuple[float, tuple[float, float]]:
-        """(bound at the goal, (slope, intercept)): ``best`` and its ``line``, or the
-        best point's when that proves more."""
+    def better(
+        self, best: float, line: tuple[float, float], pi: F64 | None
+    ) -> tuple[float, tuple[float, float], F64 | None]:
+        """(bound at the goal, (slope, intercept), the point duals (N,) of that line):
+        ``best``, its ``line`` and ``pi``, or the best point's when that proves more."""
         if self.center is None:
-            return best, line
+            return best, line, pi
         polished, slope, intercept = self.line()
-        return (polished, (slope, intercept)) if polished > best else (best, line)
+        if polished > best:
+            return polished, (slope, intercept), self.center[0]
+        return best, line, pi
 
 
 def cover_lp(
@@ -496,6 +511,7 @@ def cover_lp(
     rel_gap: float = 0.0,
     interior: bool = False,
     line_anyway: bool = False,
+    also_at: Sequence[int] = (),
 ) -> Generator[LPProgress | None, None, LPSolution]:
     """The LP relaxation by column generation (see the module docstring).
 
@@ -508,7 +524,8 @@ def cover_lp(
     short of optimal duals, ``DualPolish.MIN_STEPS`` dual steps from the duals it
     has, or from nothing, towards the cost of ``initial``, still prove a line (a part
     that starts at the parts' end: Town04's last had none, and its sensors counted 0
-    in the bound).
+    in the bound); also_at: goals at which the LP, once it ends, gives lines too
+    (``_lines_at``; ``LPSolution.more_lines``).
     Yields None while HiGHS works and an ``LPProgress`` after each round.
     """
     matrix, n = inst.matrix, inst.n_points
@@ -560,6 +577,7 @@ def cover_lp(
     polish = DualPolish(inst, cost)
     walk: Iterator[None] | None = None
     best, line = 0.0, (0.0, 0.0)
+    line_pi: F64 | None = None  # the point duals whose Lagrangian is ``line``
     rounds = 0
     # Before any round: the initial columns as the plan, no bound, nothing priced.
     last = LPSolution(
@@ -570,6 +588,7 @@ def cover_lp(
         rounds += 1
         if deadline is not None:
             limit_to(h, deadline)
+        began = time.perf_counter()
         if (yield from _run(h, stop, walk)) is not Solve.DONE:
             return last  # stopped in the middle of a solve: its values are not optimal
         _top_up(walk, polish, stop)
@@ -586,7 +605,10 @@ def cover_lp(
                 for _ in polish.walk(np.zeros(n), 0.0, target, DualPolish.MIN_STEPS):
                     yield None
                 at, slope, intercept = polish.line()
-                last = replace(last, bound=max(0.0, at), slope=slope, intercept=intercept)
+                pi = None if polish.center is None else polish.center[0]
+                last = replace(
+                    last, bound=max(0.0, at), slope=slope, intercept=intercept, line_pi=pi
+                )
             return last
         value = float(h.getInfo().objective_function_value) if optimal else math.inf
         row_dual = np.maximum(np.asarray(sol.row_dual), 0.0)  # >= 0 up to round-off
@@ -595,16 +617,9 @@ def cover_lp(
         reduced = cost - priced
         with np.errstate(divide="ignore"):
             scale = min(1.0, float(np.min(np.where(priced > 0, cost / priced, np.inf))))
-        # The duals scaled by t bound the full LP at every goal g by a line in g:
-        # t (sigma g - sum_n max(0, sigma - k_n pi_n)) less what the candidates that
-        # t prices above their cost pay (none at Farley's t = scale).
-        excess = np.maximum(0.0, sigma - need * duals) if multi else np.maximum(0.0, sigma - duals)
-        total = inst.goal * sigma - float(excess.sum())
-        t, paid = best_scale(total, priced, cost, matrix, duals)
-        slope = t * sigma * (1 - SAFETY)
-        intercept = t * float(excess.sum()) + paid + SAFETY
+        (slope, intercept), t, total = scaled_line(inst, cost, duals, sigma, priced)
         if slope * inst.goal - intercept > best:
-            best, line = slope * inst.goal - intercept, (slope, intercept)
+            best, line, line_pi = slope * inst.goal - intercept, (slope, intercept), t * duals
         # Steps uphill from this round's duals (the restricted LP's value is a target
         # above the LP's), taken beside the next round's solve (on the second core):
         # 20 steps before it cost two_routes 25 s of its 107 s LP. The best point of
@@ -613,7 +628,7 @@ def cover_lp(
         if anyway:
             for _ in polish.walk(duals, sigma, target, DualPolish.MIN_STEPS):
                 yield None
-        best, line = polish.better(best, line)
+        best, line, line_pi = polish.better(best, line, line_pi)
         # With k > 1 (x_c <= 1) the restricted LP's value holds the bounds' duals too:
         # not a bound scaled, and ``mast_aware_bound`` takes the point duals' ``total``.
         dual = total if multi else math.nan
@@ -628,20 +643,36 @@ def cover_lp(
         done_gap = rel_gap > 0 and best >= (1 - rel_gap) * value
         late = deadline is not None and time.perf_counter() > deadline
         late = late or (stop is not None and stop.is_set())
-        ending = complete or done_int or done_gap or late or not optimal
+        # Lines at other goals only where the tangent is steep: where it loses more
+        # than ``STEEP`` of its value by the lowest of them (on a part of Town04, 0.006
+        # a point, losing 19 % by 6 % below its goal, the solves took 42 s for lines
+        # below the tangent; on two_routes in 3 parts, 7 s for the 11 sensors above).
+        # With those to come, no round is begun that the deadline would likely cut
+        # short (as long as this one, and half again: rounds grow): they go on from
+        # an optimal basis.
+        lowest = min(also_at, default=inst.goal)
+        steep = line[0] * (inst.goal - lowest) > STEEP * max(best, 1e-9)
+        solve_s = time.perf_counter() - began
+        short = steep and time.perf_counter() + 1.5 * solve_s > (deadline or math.inf)
+        ending = complete or done_int or done_gap or late or short or not optimal
         if ending and not late:
             # No next solve to walk beside: the last duals' steps now, for the line
             # the LP returns (a part's tangent in its goal, ``combined_bound``).
             _top_up(walk, polish)
-            best, line = polish.better(best, line)
+            best, line, line_pi = polish.better(best, line, line_pi)
         if complete and optimal:
             best = max(best, value * (1 - SAFETY) - SAFETY)
         x = np.asarray(sol.col_value)[first:]
         last = LPSolution(
             value, best, np.array(order, dtype=np.int64), x, priced, reduced, rounds, complete,
-            *line, dual=dual, pi=duals,
+            *line, dual=dual, pi=duals, line_pi=line_pi,
         )  # fmt: skip
         if ending:
+            if steep and optimal and not (stop is not None and stop.is_set()):
+                more = yield from _lines_at(h, inst, cost, also_at, stop)
+                last = replace(
+                    last, more_lines=tuple(m[0] for m in more), more_pi=tuple(m[1] for m in more)
+                )
             return last
         # New columns are priced at duals between this round's and the best point of
         # the dual steps (smoothing, after Wentges; ``DualPolish.steady``): the
@@ -658,6 +689,65 @@ def cover_lp(
         by_group = negative[np.lexsort((reduced[negative], group[negative]))]
         firsts = by_group[np.r_[True, group[by_group][1:] != group[by_group][:-1]]]
         add(firsts[np.argsort(reduced[firsts], kind="stable")[:per_round]])
+
+
+def _lines_at(
+    h: highspy.Highs,
+    inst: CoverInstance,
+    cost: F64,
+    goals: Sequence[int],
+    stop: threading.Event | None,
+) -> Generator[None, None, list[tuple[tuple[float, float], F64]]]:
+    """Lines of the LP ``inst`` at ``goals`` (line: (slope, intercept), and its point
+    duals (N,)): the restricted LP in ``h`` solved again at each goal, its duals
+    scaled as a round's are (``best_scale``) and ``DualPolish.MIN_STEPS`` dual steps
+    from them. At most ``GOAL_SOLVE_S`` a goal; none once ``stop`` is set.
+
+    Why: a part's line is a tangent at its own goal and sags below its LP away from
+    it, where the whole's bound moves goal (``combined_bound``). On two_routes in 3
+    parts one part's goal was 14 points below all it could cover, its tangent
+    0.1 a point: at 111 points below its own goal the tangent was 0, and the best
+    split took 257 points off it, so its 11 sensors counted 0."""
+    n = inst.n_points
+    out: list[tuple[tuple[float, float], F64]] = []
+    # The goal's bound changed, the basis stays dual feasible: the dual simplex goes on.
+    h.setOptionValue("simplex_strategy", 1)
+    for goal in goals:
+        h.changeRowBounds(n, float(goal), highspy.kHighsInf)
+        limit_to(h, time.perf_counter() + GOAL_SOLVE_S)
+        if (yield from _run(h, stop)) is not Solve.DONE:
+            break
+        if h.getModelStatus() != highspy.HighsModelStatus.kOptimal:
+            continue
+        value = float(h.getInfo().objective_function_value)
+        row_dual = np.maximum(np.asarray(h.getSolution().row_dual), 0.0)
+        duals, sigma = row_dual[:n], float(row_dual[n])
+        at = replace(inst, goal=int(goal))
+        (slope, intercept), t, _ = scaled_line(at, cost, duals, sigma)
+        polish = DualPolish(at, cost)
+        for _ in polish.walk(duals, sigma, value, DualPolish.MIN_STEPS):
+            yield None
+        _, line, pi = polish.better(slope * goal - intercept, (slope, intercept), t * duals)
+        assert pi is not None
+        out.append((line, pi))
+    return out
+
+
+def scaled_line(
+    inst: CoverInstance, cost: F64, duals: F64, sigma: float, priced: F64 | None = None
+) -> tuple[tuple[float, float], float, float]:
+    """((slope, intercept), t, total): the LP's bound as a line in its goal g from the
+    point duals ``duals`` (N,) and goal dual ``sigma`` scaled by t (``best_scale``):
+    t (sigma g - sum_n max(0, sigma - k_n pi_n)) less what the candidates that t prices
+    above their cost pay (none at Farley's t), lowered by ``SAFETY``; total: the
+    duals' own value at the instance's goal. priced: (C,) ``M pi`` if known."""
+    matrix = inst.matrix
+    if priced is None:
+        priced = np.asarray(matrix @ duals.astype(matrix.dtype), dtype=float)
+    excess = np.maximum(0.0, sigma - (inst.k * duals if inst.multi else duals))
+    total = inst.goal * sigma - float(excess.sum())
+    t, paid = best_scale(total, priced, cost, matrix, duals)
+    return (t * sigma * (1 - SAFETY), t * float(excess.sum()) + paid + SAFETY), t, total
 
 
 def _top_up(

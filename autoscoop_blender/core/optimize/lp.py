@@ -124,6 +124,8 @@ class PartInputs:
     lp_cost: F64
     lp_inst: CoverInstance
     sites: Generator[None, None, SiteSolution]
+    # Goals at which its LP gives lines too (``bound.cover_lp``'s ``also_at``).
+    other_goals: tuple[int, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -452,6 +454,7 @@ def prove_bound(
         lp_gen = cover_lp(
             part.lp_inst, ones, cands.position, np.array(start, dtype=np.int64), integral=False,
             deadline=deadline, stop=stop, rel_gap=PART_REL_GAP, line_anyway=True,
+            also_at=part.other_goals,
         )  # fmt: skip
     elif inst.xy is not None and n_parts > 1:
         split = parts_of(inst.xy, n_parts)

@@ -24,7 +24,10 @@ covers that lie in the part; a site (mast position) likewise. For any plan of th
 whole ground, its candidates that see part p form a plan of part p covering what it
 covers there, at the shared cost; over the parts the shares add up to the plan's cost.
 So the sum of the parts' LP values, each at the goal the plan meets in it, is at most
-the plan's cost. Each part's LP duals give its value as a line in its goal
+the plan's cost. A share is where a part's sensors LP starts: it keeps of each
+candidate's cost only what its line's duals price it at, and hands the rest on to the
+parts after it (``CostLedger``); a plan's candidates still cost at most their cost
+over the parts. Each part's LP duals give its value as a line in its goal
 (``bound.LPSolution.slope``), and ``bound.combined_bound`` takes the least total over
 every split of the whole goal among the parts: a lower bound on every plan, whatever
 split the parts were solved at. A part not solved yet counts 0 at any goal. The same
@@ -32,7 +35,8 @@ holds for the fewest masts, with the LP over sites (a site covers what any of it
 candidates covers; with k > 1 it adds at most min(its candidates there, k) to a
 point). A tangent at the part's goal sags below the LP away from it, and the best
 split moves goal to where the tangents are flattest; so the masts LP, whose last
-points cost the most, gives lines at the goals either side too, and each part's
+points cost the most, gives lines at the goals either side too, the sensors LP at
+goals below its own where its tangent is steep (``OTHER_GOALS``), and each part's
 bound is the highest of its lines (still convex in its goal). The cost bound is
 mast_cost x masts + sensor_cost x sensors, each rounded up; or, higher where the
 masts' best split of the goal is not the sensors', the least over one split for
@@ -140,10 +144,75 @@ FEWEST_SHARE = 0.4
 # points gave the same 10 masts as every point, in 7 s instead of 41 s, and they cover
 # 99.0 % of the part's points for a goal of 97 % (2026-11-27/28).
 SAMPLE_CELLS = 2
+# A part's sensors LP gives lines at these fractions of the part's points below its
+# goal, and at all it can cover, where its tangent is steep (``bound.cover_lp``'s
+# ``also_at``): on two_routes in 3 parts one part's 11 sensors counted 0 in the whole's
+# bound, its goal moved 257 points down where its tangent was 0 at 111.
+OTHER_GOALS = (0.01, 0.03, 0.06)
 # The most masts re-planned at once (``rejoin_windows``): Town01's 33 took 22 s
 # (1,675 candidates); Town04's 117 at once found nothing cheaper in their share
 # (about 160 s).
 REJOIN_MASTS = 40
+
+
+class CostLedger:
+    """What the parts solved so far took of each candidate's cost in their sensors
+    LPs' bounds, so that the parts after them may take the rest (the bound's
+    decomposition, module docstring).
+
+    A part's line is the Lagrangian bound of point duals pi (``LPSolution.line_pi``),
+    sigma goal - sum_n max(0, sigma - k_n pi_n) - sum_c max(0, (M pi)_c - cost_c), at
+    its candidates' costs in the part. Lowering a cost to min(cost_c, (M pi)_c) leaves
+    that bound as it is: the part needs only that much of the candidate. The rest goes
+    to the parts after it, split by the points the candidate covers in each. So the
+    costs over the parts still add up to at most each candidate's cost, and a part
+    after another gets at least its share (``PartCandidates.share``; exactly that when
+    every part before took all of its own). The first part's costs are its shares.
+
+    Held per (model, position, orientation), a float and a count each: Town04's
+    15,992 positions x 216 orientations take 41 MB."""
+
+    def __init__(self) -> None:
+        self.taken = np.zeros(0)  # of each candidate's cost, by the parts before
+        self.counted = np.zeros(0, dtype=np.int64)  # its points in the parts before
+        self.offset = np.zeros(1, dtype=np.int64)  # where each model's entries begin
+
+    def _index(self, cands: CandidateSet) -> I64:
+        """(C,) each candidate's entry, the ledger sized at the first call."""
+        sizes = [len(cands.positions) * len(a) for a in cands.angles]
+        if len(self.taken) == 0:
+            self.offset = np.cumsum([0, *sizes]).astype(np.int64)
+            self.taken = np.zeros(int(self.offset[-1]))
+            self.counted = np.zeros(int(self.offset[-1]), dtype=np.int64)
+        per_position = np.array([len(a) for a in cands.angles], dtype=np.int64)[cands.model]
+        out: I64 = self.offset[cands.model] + cands.position * per_position + cands.orientation
+        return out
+
+    def costs(self, part: PartCandidates, unit: F64 | float) -> F64:
+        """(C,) the part's candidates' costs for its LP: of each candidate's cost
+        ``unit`` what the parts before left, split by its points in this part against
+        those in the parts after it."""
+        idx = self._index(part.cands)
+        here = np.diff(part.cands.matrix.indptr).astype(float)
+        total = np.rint(here / np.maximum(part.share, 1e-300))
+        ahead = np.maximum(total - self.counted[idx], here)
+        left = np.maximum(0.0, unit - self.taken[idx])
+        out: F64 = left * here / np.maximum(ahead, 1.0)
+        return out
+
+    def take(
+        self, part: PartCandidates, cost: F64, matrix: sparse.csr_matrix, pis: list[F64]
+    ) -> None:
+        """Enter what the part's lines took: min(cost_c, the most any of their duals
+        price it at) for each candidate (``matrix``: (C, N) the rows its LP had,
+        ``pis``: each line's point duals (N,); none: no line, nothing taken), and its
+        points."""
+        idx = self._index(part.cands)
+        if pis:
+            priced = np.max([np.asarray(matrix @ pi, dtype=float) for pi in pis], axis=0)
+            # Rounded up: taking more than the lines need is safe, less is not.
+            self.taken[idx] += np.minimum(cost, priced * (1 + 1e-9) + 1e-12)
+        self.counted[idx] += np.diff(part.cands.matrix.indptr)
 
 
 def part_count(problem: Problem) -> int:
@@ -416,7 +485,7 @@ def solve_deadline(
 
 def whole_bound(
     problem: Problem,
-    sensor_lines: list[Line],
+    sensor_lines: list[list[Line]],
     mast_lines: list[list[Line]],
     coverable: list[int],
     goal: int,
@@ -699,7 +768,7 @@ def solve_in_parts(
     open_points = [np.count_nonzero(~start_covered[part_of == k]) for k in range(n_parts)]
     total_open = max(sum(open_points), 1)
     goal = max(0, problem.goal - solution.n_covered)
-    sensor_lines: list[Line] = [(0.0, 0.0)] * n_parts
+    sensor_lines: list[list[Line]] = [[(0.0, 0.0)]] * n_parts
     mast_lines: list[list[Line]] = [[(0.0, 0.0)]] * n_parts
     reach = list(open_points)  # what each part can cover: at most its open points
     rounds = 0
@@ -771,6 +840,7 @@ def solve_in_parts(
         finally:
             gen.close()
 
+    ledger = CostLedger()  # what each part's sensors line took of the candidates' costs
     builder = builder or LocalBuilder()
     builder.start(problem, [np.flatnonzero(part_of == k) for k in range(n_parts)], reach_m)
     try:
@@ -804,10 +874,11 @@ def solve_in_parts(
             solving = time.perf_counter()
             taken = taken_candidates(cands, solution.sensors)
             # The part as the bound sees it (nothing fixed but what the run started
-            # with) and as its plan does (what the parts before cover is covered).
+            # with: a plan of the whole ground may use a candidate the parts before
+            # fixed) and as its plan does (what the parts before cover is covered).
             full, _ = split_instance(
                 cands, points, start_covered, start_counts, solution.need, xy,
-                s.max_sensors_per_mast, taken,
+                s.max_sensors_per_mast, taken_candidates(cands, solution.sensors[:first]),
             )  # fmt: skip
             reach[k] = coverable(full)
             # Its LP is solved at its share of the whole goal (its line holds at any).
@@ -845,7 +916,10 @@ def solve_in_parts(
                     fewest_masts(left, cands.position, standing, s.grid_m, part_deadline, stop),
                 )
                 unit = costs[cands.model] if mixed else 1.0
-                how = PartInputs(unit * part.share, full, sites)
+                lp_cost = ledger.costs(part, unit)
+                below = (int(full.goal - f * len(points)) for f in OTHER_GOALS)
+                goals = tuple(g for g in (*below, reach[k]) if 0 < g != full.goal)
+                how = PartInputs(lp_cost, full, sites, goals)
                 with _standing_too(problem, used):
                     solve = prove_and_plan(problem, cands, left, solution, part_deadline, stop, how)
                     while True:
@@ -855,7 +929,9 @@ def solve_in_parts(
                             chosen, _, lp = done.value
                             break
                         yield where(p, k, "solve")
-                sensor_lines[k] = (lp.slope, lp.intercept)
+                sensor_lines[k] = [(lp.slope, lp.intercept), *lp.more_lines]
+                pis = [] if lp.line_pi is None else [lp.line_pi, *lp.more_pi]
+                ledger.take(part, lp_cost, full.matrix, pis)
                 site_lp: SiteLP | None = masts_lp.get("lp")
                 if site_lp is not None:
                     # After the part's plan, which does not need them, and at most until
