@@ -170,7 +170,7 @@ class CostLedger:
     every part before took all of its own). The first part's costs are its shares.
 
     Held per (model, position, orientation), a float and a count each: Town04's
-    15,992 positions x 216 orientations take 41 MB."""
+    15,992 positions x 216 orientations take 55 MB."""
 
     def __init__(self) -> None:
         self.taken = np.zeros(0)  # of each candidate's cost, by the parts before
