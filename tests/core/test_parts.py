@@ -208,7 +208,7 @@ def _ledger_part(rows: list[list[int]], n_points: int, share: list[float]) -> Pa
 def test_the_ledger_hands_on_what_a_parts_line_left_of_a_cost():
     """Candidate 0 covers 2 points in part A, 1 in B and 1 in C (shares 1/2, 1/4, 1/4);
     candidate 1 only A's. A's duals price candidate 0 at 0.2 (of its 0.5) and
-    candidate 1 at 0.9 (above its 1): A takes 0.2 and 1. B gets 0.8 x 1/2 of candidate
+    candidate 1 at 1.3 (above its 1): A takes 0.2 and 1. B gets 0.8 x 1/2 of candidate
     0 (more than its share 0.25), its duals take 0.1, and C the 0.7 left: the three
     add up to 1, the candidate's cost. (Figures by hand.)"""
     ledger = parts_module.CostLedger()
