@@ -179,13 +179,13 @@ class CostLedger:
 
     def _index(self, cands: CandidateSet) -> I64:
         """(C,) each candidate's entry, the ledger sized at the first call."""
-        sizes = [len(cands.positions) * len(a) for a in cands.angles]
+        orientations = np.array([len(a) for a in cands.angles], dtype=np.int64)  # per model
         if len(self.taken) == 0:
-            self.offset = np.cumsum([0, *sizes]).astype(np.int64)
+            self.offset = np.concatenate([[0], np.cumsum(len(cands.positions) * orientations)])
             self.taken = np.zeros(int(self.offset[-1]))
             self.counted = np.zeros(int(self.offset[-1]), dtype=np.int64)
-        per_position = np.array([len(a) for a in cands.angles], dtype=np.int64)[cands.model]
-        out: I64 = self.offset[cands.model] + cands.position * per_position + cands.orientation
+        at = cands.position * orientations[cands.model] + cands.orientation
+        out: I64 = self.offset[cands.model] + at
         return out
 
     def costs(self, part: PartCandidates, unit: F64 | float) -> F64:
