@@ -230,6 +230,20 @@ def test_the_ledger_hands_on_what_a_parts_line_left_of_a_cost():
     np.testing.assert_allclose(ledger.costs(b, 1.0), [0.5])
 
 
+def test_the_ledger_keeps_what_the_highest_of_a_parts_lines_needs():
+    """Part A has two lines (its goal's and one below it): the first's duals price
+    candidate 0 at 0.2, the second's at 0.3; each line must still hold at A's costs,
+    so A keeps 0.3 of its 0.5, and B gets (1 - 0.3) x 1/2 = 0.35 (its point of the two
+    the candidate covers in B and C). (Figures by hand.)"""
+    ledger = parts_module.CostLedger()
+    a = _ledger_part([[0, 1], [1, 2]], 3, [0.5, 1.0])
+    cost_a = ledger.costs(a, 1.0)
+    lines = [np.array([0.1, 0.1, 1.2]), np.array([0.0, 0.3, 0.0])]
+    ledger.take(a, cost_a, a.cands.matrix, lines)
+    b = _ledger_part([[0]], 2, [0.25])
+    np.testing.assert_allclose(ledger.costs(b, 1.0), [0.35])
+
+
 def test_a_parts_lp_prices_each_candidate_at_most_at_what_the_parts_before_left(
     small_parts, monkeypatch
 ):
