@@ -105,6 +105,8 @@ TESTS_FOR: dict[str, list[str]] = {
         "tests/core/test_lp.py",
         "tests/core/test_mixed_pack.py",
     ],
+    # test_joint.py checks the joint bound against brute-force optima (hypothesis), ~7 s.
+    "autoscoop_blender/core/optimize/joint.py": ["tests/core/test_joint.py"],
     "autoscoop_blender/core/optimize/bound.py": [
         "tests/core/test_bound.py",
         "tests/core/test_lp.py",

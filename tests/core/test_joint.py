@@ -232,3 +232,65 @@ def test_the_joint_bound_never_exceeds_the_optimum(case, per_round, rows_per_rou
             assert lp.at(lp.masts) == pytest.approx(direct, abs=1e-5)
         for m in range(len(lp.sensors)):
             assert lp.at(m) <= _direct_lp(inst, m, standing, tight) + 1e-6
+
+
+@pytest.mark.parametrize(
+    ("best", "mast_cost", "price", "masts"),
+    [(74, 3, 1, 13), (74, 3, 2, 13), (23, 3, 1, 4), (10.5, 2.5, 1.5, 1)],
+)
+def test_enough_sensors_is_where_the_bound_reaches_the_best_plan(best, mast_cost, price, masts):
+    """Past ``enough_sensors`` the joint bound at ``masts`` (whole sensors, rounded up
+    as ``joint_cost_bound`` rounds them) costs at least ``best``; a little below it,
+    less. By hand: 74 - 3 x 13 = 35 at 1 a sensor needs 35 sensors (past 34); at 2 a
+    sensor, 17.5 of them, so 18 (past 17, not 16.5); 23 - 12 = 11 needs 11 (past 10);
+    (10.5 - 2.5) / 1.5 = 5.33 needs 6 (past 5)."""
+    enough = joint.enough_sensors(best, mast_cost, price, masts)
+    needed = {(74, 1): 35, (74, 2): 18, (23, 1): 11, (10.5, 1.5): 6}[(best, price)]
+    assert needed - 1 < enough < needed - 1 + 1e-4
+
+    def bound(sensors):
+        return joint.joint_cost_bound([], masts, masts, mast_cost, price, sensors, True)[0]
+
+    assert bound(enough) >= best
+    assert bound(enough - 2e-5) < best
+
+
+def test_the_joint_bound_of_no_goal_is_nothing():
+    """A goal of no points needs no sensor and no mast: the bound is 0 (at 0 masts),
+    not a sensor's price."""
+    assert joint.joint_cost_bound([], 0, 3, 3.0, 1.0, 0.0, True) == (0.0, 0)
+
+
+def test_the_joint_bound_names_the_fewest_masts_where_it_is_least():
+    """f(m') = 5, 4, 3, 3 at a mast cost of 1: 5 + 0, 4 + 1 and 3 + 2 tie at 5, and
+    3 + 3 = 6; the bound is 5, at 0 masts (the first of the tie)."""
+    curve = joint.MastsSensors(0, np.array([5.0, 4.0, 3.0, 3.0]), 5.0, 1, True)
+    assert joint.joint_cost_bound([curve], 0, 3, 1.0, 1.0, 0.0, True) == (5.0, 0)
+
+
+def test_each_site_takes_its_cap_largest_excesses():
+    """Point duals 1, 0.5 and 0.25 at unit cost: candidate 0 (points 0 and 1) has
+    excess 1.5 - 1 = 0.5, candidate 1 (all three) 0.75, candidates 2 (point 2) and
+    3 (point 0) none. Candidates 0 and 1 stand at site 0, 2 at site 1, 3 at site 2;
+    site 3 has none. With a cap of 1 site 0's phi is 0.75; without a cap, 1.25;
+    every other site's 0, and phi has one entry per site."""
+    rows = [[0, 1], [0, 1, 2], [2], [0]]
+    site_of = np.array([0, 0, 1, 2])
+    pi = np.array([1.0, 0.5, 0.25])
+    for cap, phi0 in [(1, 0.75), (None, 1.25)]:
+        inst = _instance(rows, 3, site_of, goal=3, cap=cap)
+        excess, phi = joint.site_excess(inst, np.ones(4), site_of, 4, pi)
+        assert excess == pytest.approx([0.5, 0.75, 0.0, 0.0])
+        assert phi == pytest.approx([phi0, 0.0, 0.0, 0.0])
+
+
+def test_the_dual_curve_lies_below_the_dual_value_by_the_safety_margin():
+    """sigma = 1 and pi = 1 at 3 points of k = 1, goal 2: sigma x goal less
+    sum max(0, sigma - pi) = 2; phi = 0.5 and 1.5 at two sites, one of them standing
+    (always subtracted): f(0) = 2 - 0.5 = 1.5 and f(1) = 1.5 - 1.5 = 0, each lowered
+    by SAFETY x (|f| + 1), so that round-off never lifts it over the true value."""
+    inst = _instance([[0], [1], [2]], 3, [0, 1, 1], goal=2, cap=4)
+    curve = joint.dual_curve(inst, np.array([0.5, 1.5]), np.array([True, False]), np.ones(3), 1.0)
+    exact = np.array([1.5, 0.0])
+    assert curve == pytest.approx(exact - joint.SAFETY * (np.abs(exact) + 1), rel=0, abs=1e-12)
+    assert (curve < exact).all()

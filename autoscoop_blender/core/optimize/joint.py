@@ -165,7 +165,7 @@ def joint_cost_bound(
     sensors: float,
     integral: bool,
 ) -> tuple[float, int]:
-    """(the joint bound, the m' where it is least): the least over m' from
+    """(the joint bound, the fewest m' where it is least): the least over m' from
     ``fewest_masts`` to ``n_masts`` (the sites without a standing mast) of
     ``mast_cost m' + sensor_cost s(m')``, s(m') the largest of the ``solved`` curves
     at m' and ``sensors`` (the sensors bound), rounded up when ``integral`` (unit
@@ -504,8 +504,14 @@ def masts_sensors_lp(
 
 def enough_sensors(best: float, mast_cost: float, sensor_price: float, masts: int) -> float:
     """The sensors on ``masts`` masts beyond which the joint bound there proves
-    nothing more: it then reaches ``best``, the best plan's cost."""
-    return (best - mast_cost * masts) / sensor_price - 1 + 1e-5
+    nothing more: the whole sensors it rounds up to then cost at least ``best``, the
+    best plan's cost, with the masts (``joint_cost_bound``). Whole sensors, not the
+    cost's share: at a price of 2 a sensor, 74 less 13 masts at 3 takes 18 sensors,
+    so the LP goes on past 16.5 to 17."""
+    share = (best - mast_cost * masts) / sensor_price
+    if not math.isfinite(share):  # no plan yet: nothing is enough
+        return share
+    return math.ceil(share - 1e-9) - 1 + 1e-5
 
 
 def joint_bound(
