@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import itertools
 import math
+import threading
+import time
 
 import numpy as np
 import pytest
@@ -167,6 +169,16 @@ def test_the_site_rows_keep_a_half_open_mast_from_covering_a_point_twice():
         assert lp.complete and lp.value == pytest.approx(value)
         assert lp.at(1) == pytest.approx(value, abs=1e-5)
         assert _direct_lp(inst, 1, standing, tight) == pytest.approx(value)
+        # The same LP from the joint bound's search, which passes ``tight`` on (and
+        # leaves the site rows out unless asked).
+        solved = []
+        flag = {"tight": True} if tight else {}
+        go = joint.joint_bound(
+            inst, inst.site_of, standing, 1, 3.0, 1.0, 0.0, np.zeros(0, np.int64),
+            np.zeros(0, np.int64), solved=solved, **flag,
+        )  # fmt: skip
+        steps(go)
+        assert solved[0].masts == 1 and solved[0].value == pytest.approx(value)
 
 
 def test_a_point_joins_while_short_of_its_k(monkeypatch):
@@ -294,3 +306,26 @@ def test_the_dual_curve_lies_below_the_dual_value_by_the_safety_margin():
     exact = np.array([1.5, 0.0])
     assert curve == pytest.approx(exact - joint.SAFETY * (np.abs(exact) + 1), rel=0, abs=1e-12)
     assert (curve < exact).all()
+
+
+def test_no_lp_is_solved_when_stopped_late_or_already_at_the_best_plan():
+    """The cap instance of the first test (8 at best; apart 3 x 1 + 2 = 5): stopped,
+    past its deadline, or with a plan of 5 known, the search solves no LP and the
+    bound is the separate bounds' 5; otherwise it solves and proves 8."""
+    rows = [[0], [1], [2], [3], [4], [0, 1, 2], [3, 4]]
+    inst = _instance(rows, 5, [0, 0, 0, 0, 0, 1, 2], goal=5, cap=4)
+    stopped = threading.Event()
+    stopped.set()
+    for kwargs, bound in [
+        ({"stop": stopped}, 5.0),
+        ({"deadline": time.perf_counter() - 1.0}, 5.0),
+        ({"best": 5.0}, 5.0),
+        ({}, 8.0),
+    ]:
+        solved = []
+        go = joint.joint_bound(
+            inst, inst.site_of, np.zeros(3, bool), 1, 3.0, 1.0, 2.0, np.zeros(0, np.int64),
+            np.zeros(0, np.int64), solved=solved, **kwargs,
+        )  # fmt: skip
+        assert steps(go)[0] == pytest.approx(bound), kwargs
+        assert (solved == []) == (bound == 5.0), kwargs
