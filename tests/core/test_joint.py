@@ -196,6 +196,8 @@ def test_a_point_joins_while_short_of_its_k(monkeypatch):
     )  # fmt: skip
     assert steps(go)[0] == pytest.approx(6.0)
     assert solved[0].complete and solved[0].value == pytest.approx(3.0)
+    # Three solves: no row, point 0's, both; the third adds nothing.
+    assert solved[0].rounds == 3
 
 
 @st.composite
@@ -329,3 +331,19 @@ def test_no_lp_is_solved_when_stopped_late_or_already_at_the_best_plan():
         )  # fmt: skip
         assert steps(go)[0] == pytest.approx(bound), kwargs
         assert (solved == []) == (bound == 5.0), kwargs
+
+
+def test_an_lp_stopped_before_its_first_solve_proves_nothing():
+    """Stopped before HiGHS runs: no round, not complete, no value, and a curve of 0
+    at every number of masts (0 to the 3 sites), which bounds any plan."""
+    rows = [[0], [1], [2], [3], [4], [0, 1, 2], [3, 4]]
+    inst = _instance(rows, 5, [0, 0, 0, 0, 0, 1, 2], goal=5, cap=4)
+    stopped = threading.Event()
+    stopped.set()
+    go = joint.masts_sensors_lp(
+        inst, np.ones(7), inst.site_of, np.zeros(3, bool), 1, np.arange(7), np.arange(5),
+        stop=stopped,
+    )  # fmt: skip
+    lp = steps(go)[0]
+    assert (lp.masts, lp.rounds, lp.complete, lp.value) == (1, 0, False, math.inf)
+    assert lp.sensors.tolist() == [0.0, 0.0, 0.0, 0.0]
