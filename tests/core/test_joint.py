@@ -29,6 +29,15 @@ def _instance(rows, n_points, site_of, goal, cap, need=None):
     return CoverInstance(matrix, goal, need=need, site_of=site_of, cap=cap)
 
 
+# The first test's instance: site 0 sees points 0-4 with a candidate each (cap 4),
+# sites 1 and 2 see points 0-2 and 3-4 with one candidate each.
+CAP_ROWS = [[0], [1], [2], [3], [4], [0, 1, 2], [3, 4]]
+
+
+def _cap_instance():
+    return _instance(CAP_ROWS, 5, [0, 0, 0, 0, 0, 1, 2], goal=5, cap=4)
+
+
 def _bound(inst, mast_cost, standing=None, fewest=0, sensors=0.0):
     """The joint bound from no columns and no rows: the search adds what it needs."""
     n_sites = int(inst.site_of.max()) + 1
@@ -105,13 +114,12 @@ def test_the_cap_forces_a_second_mast_that_neither_bound_sees():
     without the cap) and the fewest sensors 2 (on sites 1 and 2): apart, 3 x 1 + 2 = 5.
     One mast cannot carry 5 sensors, so every plan has 2 masts; the cheapest is sites
     1 and 2 (3 x 2 + 2 = 8, where sites 0 and 1 cost 6 + 3). The joint bound is 8."""
-    rows = [[0], [1], [2], [3], [4], [0, 1, 2], [3, 4]]
-    inst = _instance(rows, 5, [0, 0, 0, 0, 0, 1, 2], goal=5, cap=4)
+    inst = _cap_instance()
     standing = np.zeros(3, bool)
     assert _brute_force(inst, 3.0, standing) == 8
     assert _bound(inst, 3.0, fewest=1, sensors=2.0) == pytest.approx(8.0)
     # Without the cap one mast does: 3 + 5 = 8 on site 0, or 8 on sites 1 and 2.
-    assert _bound(_instance(rows, 5, [0] * 5 + [1, 2], goal=5, cap=5), 3.0) == 8.0
+    assert _bound(_instance(CAP_ROWS, 5, [0] * 5 + [1, 2], goal=5, cap=5), 3.0) == 8.0
     # At a mast cost of 1 the 5 sensors on one mast would cost 6 and 2 masts 4: the
     # joint bound is 4 (the separate bounds give 1 + 2 = 3).
     assert _bound(inst, 1.0, fewest=1, sensors=2.0) == 4.0
@@ -124,8 +132,7 @@ def test_a_standing_mast_is_free_and_outside_the_budget():
     on site 1 and b on site 2 (a + b <= 1), 1 - a or 1 - b on site 0's: 5 - 2a - b,
     least at a = 1: 3 sensors, so 3 + 3 = 6; on two new masts 2 sensors, 6 + 2 = 8;
     on none site 0 cannot cover the 5 points."""
-    rows = [[0], [1], [2], [3], [4], [0, 1, 2], [3, 4]]
-    inst = _instance(rows, 5, [0, 0, 0, 0, 0, 1, 2], goal=5, cap=4)
+    inst = _cap_instance()
     standing = np.array([True, False, False])
     assert _brute_force(inst, 3.0, standing) == 6
     assert _bound(inst, 3.0, standing) == pytest.approx(6.0)
@@ -314,8 +321,7 @@ def test_no_lp_is_solved_when_stopped_late_or_already_at_the_best_plan():
     """The cap instance of the first test (8 at best; apart 3 x 1 + 2 = 5): stopped,
     past its deadline, or with a plan of 5 known, the search solves no LP and the
     bound is the separate bounds' 5; otherwise it solves and proves 8."""
-    rows = [[0], [1], [2], [3], [4], [0, 1, 2], [3, 4]]
-    inst = _instance(rows, 5, [0, 0, 0, 0, 0, 1, 2], goal=5, cap=4)
+    inst = _cap_instance()
     stopped = threading.Event()
     stopped.set()
     for kwargs, bound in [
@@ -336,8 +342,7 @@ def test_no_lp_is_solved_when_stopped_late_or_already_at_the_best_plan():
 def test_an_lp_stopped_before_its_first_solve_proves_nothing():
     """Stopped before HiGHS runs: no round, not complete, no value, and a curve of 0
     at every number of masts (0 to the 3 sites), which bounds any plan."""
-    rows = [[0], [1], [2], [3], [4], [0, 1, 2], [3, 4]]
-    inst = _instance(rows, 5, [0, 0, 0, 0, 0, 1, 2], goal=5, cap=4)
+    inst = _cap_instance()
     stopped = threading.Event()
     stopped.set()
     go = joint.masts_sensors_lp(
