@@ -467,15 +467,16 @@ def test_the_fewest_masts_then_a_plan_on_them():
 
 
 @pytest.mark.parametrize("most, sensors", [(1000, 2), (2, 3)])
-def test_at_k_2_a_large_mast_aware_milp_is_not_solved(monkeypatch, most, sensors):
+def test_at_k_2_a_large_mast_aware_milp_is_not_solved(most, sensors):
     """k = 2 on site 0's three candidates (each sees points 0, 1), started from all
     three: the MILP finds two of them enough when it may run on 3 candidates, and the
     start is the answer when at most 2 are allowed at k > 1."""
-    monkeypatch.setattr(bound_module, "MAX_MULTI_MILP_CANDIDATES", most)
     problem = HandLP([[0, 1], [0, 1], [0, 1]], 2, [0, 0, 0], need=[2, 2], objective="cost")
     inst = lp_module.instance(problem.candidates, problem, np.zeros(2, bool))
     site_of = problem.candidates.position
-    go = bound_module.sensors_on_sites(inst, site_of, np.array([0]), [0, 1, 2], 3.0, 1.0)
+    go = bound_module.sensors_on_sites(
+        inst, site_of, np.array([0]), [0, 1, 2], 3.0, 1.0, most_multi=most
+    )
     plan = steps(go)[0]
     assert len(set(plan)) == len(plan) == sensors and set(plan) <= {0, 1, 2}
 
@@ -625,15 +626,26 @@ def test_a_plan_on_the_lps_columns_finds_what_the_fewest_masts_hide(monkeypatch)
     on_lp = calls["plan_from"][-1]  # after the plans on the masts' sites
     assert set(on_lp["pool"].tolist()) <= {0, 1, 2, 5} and len(on_lp["pool"]) >= 2
     assert sorted(on_lp["returned"].chosen) == [1, 2]
-    # Without the plan on the LP's columns the same run settles for two masts.
+    # Without the plan on the LP's columns the windows (``_then_windows``) start from
+    # the masts' plan (8) and find site 1's pair too (the window of that plan's masts
+    # with site 1 among the positions near them).
     real = lp_module.plan_from
 
     def masts_only(problem, cands, inst, pool):
-        if inspect.stack()[1].function == "prove_and_plan":
+        if inspect.stack()[1].function == "_then_windows":
             return Cover(inst)
         return real(problem, cands, inst, pool)
 
     monkeypatch.setattr(lp_module, "plan_from", masts_only)
+    res, _ = solve(problem)
+    assert sorted(poses_of(res)) == [1, 2] and res.n_covered == 4
+
+    # Without either, the same run settles for two masts.
+    def unchanged(inst, site_of, site_xy, chosen, *rest):
+        yield None
+        return chosen
+
+    monkeypatch.setattr(lp_module, "improve_by_windows", unchanged)
     res, _ = solve(problem)
     masts = len({site_of[c] for c in poses_of(res)})
     assert res.n_covered == 4 and 3 * masts + len(res.sensors) == 8

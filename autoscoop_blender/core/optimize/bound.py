@@ -1127,6 +1127,7 @@ def sensors_on_sites(
     stop: threading.Event | None = None,
     cols: I64 | None = None,
     cutoff: float | None = None,
+    most_multi: int = MAX_MULTI_MILP_CANDIDATES,
 ) -> Generator[None, None, list[int]]:
     """The best plan on ``sites`` by the mast-aware MILP: every candidate at those
     sites, or those of ``cols`` there (x_c, binary, ``sensor_cost``: one for all or
@@ -1137,12 +1138,12 @@ def sensors_on_sites(
     machine's speed; stops at ``deadline`` or ``stop`` with the best plan so far.
     ``cutoff``: only plans whose objective is below it are looked for (HiGHS prunes
     every node whose bound is not; a start above it is not given to it); ``start``
-    when none is found, or at k > 1 on more than ``MAX_MULTI_MILP_CANDIDATES``.
+    when none is found, or at k > 1 on more than ``most_multi`` candidates.
     Returns the chosen candidates."""
     if cols is None:
         cols = np.flatnonzero(np.isin(site_of, sites)).astype(np.int64)
     cols = np.unique(cols[np.isin(site_of[cols], sites)])
-    if inst.multi and len(cols) > MAX_MULTI_MILP_CANDIDATES:
+    if inst.multi and len(cols) > most_multi:
         return list(start)
     site_idx = np.searchsorted(sites, site_of[cols])
     # Points seen by the same of these candidates are one row (see ``MergedPoints``).

@@ -44,6 +44,7 @@ import threading
 import time
 from collections.abc import Generator, Iterator
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -87,6 +88,7 @@ from .cover import (
     plan_price,
 )
 from .joint import MastsSensors, joint_bound
+from .neighbourhoods import improve as improve_by_windows
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
@@ -132,6 +134,14 @@ class PartInputs:
 class Incumbent:
     """A plan found while the bounds are still being proven (``masts_then_plan``):
     its objective, reported at once as the best plan so far, and its candidates."""
+
+    value: float
+    chosen: list[int]
+
+
+@dataclass
+class _Held:
+    """The best plan so far in ``prove_bound``: its objective and its candidates."""
 
     value: float
     chosen: list[int]
@@ -424,8 +434,10 @@ def prove_bound(
 ) -> Generator[Progress, None, tuple[PlanBound, LPSolution, list[int] | None, list[Cover]]]:
     """The lower bounds: the LP by column generation from a greedy plan's columns and,
     beside it, the fewest masts (then, when ``plan``, the best plan on them). Returns
-    the bound, the LP, the plan on the fewest masts and the greedy plans (per sensor,
-    whose columns start the LP, and per cost with a new mast's cost: fewer masts).
+    the bound, the LP, the best plan found beside them (on the fewest masts; at k > 1
+    on a whole ground, improved by windows too: ``_then_windows``) and the greedy
+    plans (per sensor, whose columns start the LP, and per cost with a new mast's
+    cost: fewer masts).
     Progress reports the best greedy plan's objective and, as it rises, what the LP
     proves of the objective (sensor_cost x its bound for cost; nothing yet for masts).
     part: how a part of the ground is solved (``PartInputs``)."""
@@ -437,6 +449,11 @@ def prove_bound(
     greedy_masts = complete(Cover(inst), every, cands.position, mc, sc)
     greedies = [greedy, greedy_masts]
     best = hold_best(problem, cands, solution, [g.chosen for g in greedies])
+    whole = [g.chosen for g in greedies if g.slack >= 0]  # those that reach the goal
+    held = _Held(math.inf, [])
+    if whole:
+        chosen = min(whole, key=partial(plan_value, problem, cands))
+        held = _Held(plan_value(problem, cands, chosen), chosen)
     yield solution.progress("search", problem.rho, best=best, stage="greedy")
     # The LP counts sensors (unit costs), or with models of different costs, prices
     # each candidate at its model's cost; the progress shows the cost it proves.
@@ -475,6 +492,8 @@ def prove_bound(
         joint = _JointStart(problem, cands, inst, best, deadline, stop)
         known = joint.keep_sites(_fewest_masts(problem, cands, inst, deadline, stop, milp))
         lp_gen = joint.then(lp_gen)
+    if plan and part is None and inst.multi:
+        lp_gen = _then_windows(problem, cands, inst, held, lp_gen, deadline, stop)
     masts = masts_then_plan(
         problem, cands, inst, deadline, stop, plan, milp, known, every_start=part is not None
     )
@@ -497,9 +516,11 @@ def prove_bound(
                 # cost too, so the gap shown is the plan's, not the sensors' alone.
                 sensors = unit * math.ceil(step.bound - 1e-6)
                 so_far = s.mast_cost * joint.sites.bound + sensors
-        if isinstance(step, Incumbent):  # a plan on the fewest masts, known at once
+        if isinstance(step, Incumbent):  # a plan found beside the bounds, known at once
             if step.value < best:
                 best = hold_best(problem, cands, solution, [step.chosen])
+            if step.value < held.value:
+                held.value, held.chosen = step.value, step.chosen
             if joint is not None:
                 joint.best = best
         if joint is not None and joint.lp is not None and joint.sites is not None and not apart:
@@ -510,12 +531,14 @@ def prove_bound(
     plan_bound = _plan_bound(lp, sites, cands, problem)
     if on_sites and plan_value(problem, cands, on_sites) < best:
         best = hold_best(problem, cands, solution, [on_sites])
+    if on_sites and plan_value(problem, cands, on_sites) < held.value:
+        held.value, held.chosen = plan_value(problem, cands, on_sites), on_sites
     if joint is not None and lp.pi is not None:
         more = _joint_bound(
             problem, cands, inst, lp, plan_bound, best, joint.solved, deadline, stop
         )
         plan_bound = yield from _progress(more, solution, problem, best, plan_bound)
-    return plan_bound, lp, on_sites, greedies
+    return plan_bound, lp, (held.chosen or None) if plan else None, greedies
 
 
 def _joint_applies(problem: Problem, cands: CandidateSet) -> bool:
@@ -620,6 +643,40 @@ class _JointStart:
         )
 
 
+def _then_windows(
+    problem: Problem,
+    cands: CandidateSet,
+    inst: CoverInstance,
+    held: _Held,
+    lp_side: Generator[Any, None, LPSolution],
+    deadline: float | None,
+    stop: threading.Event | None,
+) -> Generator[Any, None, LPSolution]:
+    """``lp_side``'s value (the LP); once it ends, the plan greedy per cost builds on
+    the LP's columns (``plan_from``), and then the best plan so far (``held``)
+    improved window by window (``neighbourhoods.improve``) while the time lasts;
+    each cheaper plan is yielded as an ``Incumbent``. At k > 1 only: there the
+    mast-aware MILP over the plan's masts is too large (``MAX_MULTI_MILP_CANDIDATES``)
+    and the plans are greedy's; on two_routes at k = 2 the windows took the plan
+    from 151 to 142 in 186 s (2026-11-30, offline). At k = 1 that MILP gives 74 there,
+    and a pass of windows over it found nothing cheaper in 92 s."""
+    lp = yield from lp_side
+    if (stop is not None and stop.is_set()) or not len(lp.columns):
+        return lp
+    on_lp = plan_from(problem, cands, inst, lp.columns[lp.x > 1e-9])
+    if on_lp.slack >= 0:
+        yield Incumbent(plan_value(problem, cands, on_lp.chosen), on_lp.chosen)
+    if not held.chosen:  # no plan reaches the goal
+        return lp
+    mc, sc = mast_aware_costs(problem, cands, len(cands))
+    windows = improve_by_windows(
+        inst, cands.position, cands.positions, held.chosen, mc, sc, deadline, stop
+    )
+    for plan in windows:
+        yield None if plan is None else Incumbent(plan_value(problem, cands, plan), plan)
+    return lp
+
+
 def _progress(
     gen: Generator[None, None, PlanBound],
     solution: Solution,
@@ -685,7 +742,9 @@ def prove_and_plan(
     )
     lower = bound.objective(s.objective, s.mast_cost, s.sensor_cost)
     plans = [g.chosen for g in greedies if g.slack >= 0] + ([on_sites] if on_sites else [])
-    if len(lp.columns) and (stop is None or not stop.is_set()):
+    # At k > 1 on a whole ground ``_then_windows`` built this plan already.
+    windows = part is None and inst.multi
+    if len(lp.columns) and (stop is None or not stop.is_set()) and not windows:
         # The LP spreads a k > 1 cover over sites that the fewest masts, which count
         # what a site sees once and not the sensors it can carry, do not show: on
         # two_routes at k = 2 this plan was 76 sensors on 22 masts (142; 136 over
