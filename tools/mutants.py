@@ -107,6 +107,8 @@ TESTS_FOR: dict[str, list[str]] = {
     ],
     # test_joint.py checks the joint bound against brute-force optima (hypothesis), ~7 s.
     "autoscoop_blender/core/optimize/joint.py": ["tests/core/test_joint.py"],
+    # test_neighbourhoods.py: windows on hand-made grounds against brute-force optima, ~2 s.
+    "autoscoop_blender/core/optimize/neighbourhoods.py": ["tests/core/test_neighbourhoods.py"],
     "autoscoop_blender/core/optimize/bound.py": [
         "tests/core/test_bound.py",
         "tests/core/test_lp.py",

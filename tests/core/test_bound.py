@@ -1033,7 +1033,9 @@ def test_a_steep_tangent_gets_lines_at_the_goals_below_that_hold_there():
     rows = [list(range(16)), [16], [17], [18], [19]]
     inst = instance(rows, 20, 19)
     cost = np.ones(5)
-    sol = drain(cover_lp(inst, cost, np.arange(5), np.array([0]), integral=False, also_at=(12, 8)))
+    sol = drain(
+        cover_lp(inst, cost, np.arange(5), np.array([0]), integral=False, also_at=(12, 8))
+    )
     assert sol.value == pytest.approx(4.0)
     assert sol.slope == pytest.approx(1.0, rel=1e-5)
     assert sol.slope * 12 - sol.intercept < 0  # the tangent proves nothing at 12

@@ -4,8 +4,10 @@ plans worked out by hand and a brute-force optimum."""
 from __future__ import annotations
 
 import threading
+import time
 
 import numpy as np
+import pytest
 from scipy.spatial import cKDTree
 
 from autoscoop_blender.core.optimize import neighbourhoods
@@ -115,15 +117,124 @@ def test_an_optimal_plan_and_a_stopped_search_are_left_as_they_are():
 
 
 def test_a_window_keeps_its_own_sensors_when_candidates_are_trimmed(monkeypatch):
-    """At most 2 candidates a window, over sites 0 and 1 (one each): at each site the
-    one that sees the most of the window's points ({0, 1}: what the plan's sensor,
-    candidate 1, sees), the first at a tie, and the plan's own sensor as well."""
-    monkeypatch.setattr(neighbourhoods, "WINDOW_CANDIDATES", 2)
-    rows = [[0, 1, 2], [0, 1], [0], [0, 1, 2, 3]]
-    inst = _instance(rows, 4, [0, 0, 1, 1], goal=2, cap=4)
-    xy = np.array([(0.0, 0.0), (5.0, 0.0)])
-    taken = np.array([True, False])
-    w = neighbourhoods.window(inst, inst.site_of, xy, [1], np.array([0]), cKDTree(xy), taken)
-    assert w is not None
+    """At most 3 candidates a window, over sites 0 and 1 (5 candidates): 3 // 2 = 1 at
+    each site, the one that sees the most of the window's points ({0, 1}: what the
+    plan's sensor, candidate 1, sees), the first at a tie; and the plan's own sensor."""
+    monkeypatch.setattr(neighbourhoods, "WINDOW_CANDIDATES", 3)
+    rows = [[0, 1, 2], [0, 1], [0], [0, 1, 2, 3], [1]]
+    inst = _instance(rows, 4, [0, 0, 0, 1, 1], goal=2, cap=4)
+    w = _window(inst, [(0.0, 0.0), (5.0, 0.0)], [1], freed=[0])
     assert w.cols.tolist() == [0, 1, 3] and w.sites.tolist() == [0, 1]
     assert w.cols[w.start].tolist() == [1] and w.inst.goal == 2
+    # Exactly as many candidates as allowed (4; 2 a site if trimmed): none is left
+    # out, not even candidate 2, which sees the fewest of the window's points.
+    monkeypatch.setattr(neighbourhoods, "WINDOW_CANDIDATES", 4)
+    inst = _instance(rows[:4], 4, [0, 0, 0, 1], goal=2, cap=4)
+    w = _window(inst, [(0.0, 0.0), (5.0, 0.0)], [1], freed=[0])
+    assert w.cols.tolist() == [0, 1, 2, 3]
+
+
+def _window(inst, xy, chosen, freed):
+    """The window of sites ``freed`` of the plan ``chosen``."""
+    xy = np.asarray(xy, float)
+    taken = np.isin(np.arange(len(xy)), inst.site_of[chosen])
+    w = neighbourhoods.window(inst, inst.site_of, xy, chosen, np.asarray(freed), cKDTree(xy), taken)
+    assert w is not None
+    return w
+
+
+def test_the_positions_offered_are_those_that_see_most_of_the_windows_points(monkeypatch):
+    """Site 0 carries the plan's sensor (points 0, 1; point 2 is short of the goal but
+    not the window's, point 3 covered by site 4's sensor, 100 m away). Of the free
+    positions 5 m away, site 1 sees one of the window's points, site 2 both, site 3
+    only points 2 and 3: with room for one, site 2 is offered; with room for three,
+    sites 1 and 2, never site 3 (it sees none of the window's points)."""
+    rows = [[0, 1], [0], [0, 1], [2, 3], [3]]
+    inst = _instance(rows, 4, [0, 1, 2, 3, 4], goal=3, cap=4)
+    xy = [(0, 0), (5, 0), (0, 5), (-5, 0), (100, 0)]
+    monkeypatch.setattr(neighbourhoods, "NEW_SITES", 1)
+    assert _window(inst, xy, [0, 4], freed=[0]).sites.tolist() == [0, 2]
+    monkeypatch.setattr(neighbourhoods, "NEW_SITES", 3)
+    w = _window(inst, xy, [0, 4], freed=[0])
+    assert w.sites.tolist() == [0, 1, 2]
+    # The points short of their k that the window's candidates see; the goal less
+    # what site 4 covers.
+    assert w.inst.n_points == 2 and w.inst.goal == 2
+
+
+def test_a_point_only_one_candidate_sees_is_in_the_window():
+    """Points 0-2, all needed. Site 0 carries {0} and {1}, site 1 (5 m away) {2}: 9.
+    Site 0 has a third candidate that sees {1, 2}: the plan {0}, {1, 2} on site 0
+    costs 5, the optimum; point 0 is seen by one candidate alone."""
+    rows = [[0], [1], [2], [1, 2]]
+    inst = _instance(rows, 3, [0, 0, 1, 0], goal=3, cap=4)
+    plan, _ = _improve(inst, [(0, 0), (5, 0)], [0, 1, 2])
+    assert sorted(plan) == [0, 3]
+    assert _cost(inst, plan) == 5.0 == _brute_force(inst, MAST, np.zeros(2, bool))
+
+
+def test_the_cap_holds_in_a_window():
+    """At most 2 sensors a mast. Site 0 carries {0, 1} and {2, 3}, site 1 {4, 5}: 9.
+    Site 2 between them has a candidate for each pair: all three there would cost 6,
+    but only two fit, so 9 is the optimum and the plan stays as it is."""
+    rows = [[0, 1], [2, 3], [4, 5], [0, 1], [2, 3], [4, 5]]
+    inst = _instance(rows, 6, [0, 0, 1, 2, 2, 2], goal=6, cap=2)
+    plan, _ = _improve(inst, [(0, 0), (10, 0), (5, 0)], [0, 1, 2])
+    assert _cost(inst, plan) == 9.0 == _brute_force(inst, MAST, np.zeros(3, bool))
+
+
+def test_a_mast_the_rest_makes_redundant_is_closed(monkeypatch):
+    """Goal 2 of 4 points, one mast a window: site 0's sensor sees {0, 1}, site 1's
+    (100 m away) {2, 3}. Site 0's window (the first, at a tie in sensors) has nothing
+    left to cover: it is closed, and site 1's sensor stays (cost 4)."""
+    monkeypatch.setattr(neighbourhoods, "WINDOW_MASTS", 1)
+    inst = _instance([[0, 1], [2, 3]], 4, [0, 1], goal=2, cap=4)
+    assert _improve(inst, [(0, 0), (100, 0)], [0, 1]) == ([1], [[1]])
+    # A goal of nothing: no sensor is needed at all.
+    inst = _instance([[0, 1]], 2, [0], goal=0, cap=4)
+    assert _improve(inst, [(0, 0)], [0]) == ([], [[]])
+
+
+def test_passes_go_on_while_a_window_changes_the_plan(monkeypatch):
+    """One mast a window, every point needed. Site 0 (100 m away from the rest)
+    carries {0}; site 1 carries {1, 2} and {3, 4}: 9. Site 2, 5 m from site 1, sees
+    all five points. Site 0's window comes first (fewer sensors) and finds nothing;
+    site 1's moves its mast to site 2 (8); then, in a second pass, site 0's window
+    has nothing left to cover: 4, the optimum."""
+    monkeypatch.setattr(neighbourhoods, "WINDOW_MASTS", 1)
+    rows = [[0], [1, 2], [3, 4], [0, 1, 2, 3, 4]]
+    inst = _instance(rows, 5, [0, 1, 1, 2], goal=5, cap=4)
+    plan, yielded = _improve(inst, [(0, 0), (100, 0), (105, 0)], [0, 1, 2])
+    assert [_cost(inst, p) for p in yielded] == [8.0, 4.0] and plan == [3]
+    assert _brute_force(inst, MAST, np.zeros(3, bool)) == 4.0
+
+
+def test_each_window_solve_is_handed_the_stop_a_cutoff_and_a_time_limit(monkeypatch):
+    """The MILP of each window gets the search's stop, a cutoff just below the
+    window's own cost, at most ``WINDOW_S`` seconds (never past the deadline) and the
+    window's limit on candidates; a stopped search solves nothing."""
+    calls = []
+    real = neighbourhoods.sensors_on_sites
+
+    def spy(inst, site_of, sites, start, mc, sc, deadline, stop, cutoff, most_multi):
+        calls.append((deadline, stop, cutoff, most_multi, time.perf_counter()))
+        return (yield from real(inst, site_of, sites, start, mc, sc, deadline, stop,
+                                cutoff=cutoff, most_multi=most_multi))  # fmt: skip
+
+    monkeypatch.setattr(neighbourhoods, "sensors_on_sites", spy)
+    inst = _instance([[0, 1, 2], [3, 4, 5], [0, 1, 2, 3, 4, 5]], 6, [0, 1, 2], goal=6, cap=4)
+    xy = np.array([(0.0, 0), (10, 0), (5, 0)])
+    stop = threading.Event()
+    for deadline in (time.perf_counter() + 3600.0, time.perf_counter() + 2.0):
+        calls.clear()
+        go = neighbourhoods.improve(inst, inst.site_of, xy, [0, 1], MAST, 1.0, deadline, stop)
+        assert steps(go)[0] == [2]
+        limit, handed, cutoff, most, at = calls[0]
+        assert handed is stop and most == neighbourhoods.WINDOW_CANDIDATES
+        assert cutoff == pytest.approx(8.0 - neighbourhoods.EPS, abs=1e-12)
+        assert limit <= min(deadline, at + neighbourhoods.WINDOW_S)
+        assert limit >= min(deadline, at + neighbourhoods.WINDOW_S) - 0.5
+    stop.set()
+    calls.clear()
+    go = neighbourhoods.improve(inst, inst.site_of, xy, [0, 1], MAST, 1.0, None, stop)
+    assert steps(go)[0] == [0, 1] and calls == []

@@ -657,9 +657,9 @@ def _then_windows(
     improved window by window (``neighbourhoods.improve``) while the time lasts;
     each cheaper plan is yielded as an ``Incumbent``. At k > 1 only: there the
     mast-aware MILP over the plan's masts is too large (``MAX_MULTI_MILP_CANDIDATES``)
-    and the plans are greedy's; on two_routes at k = 2 the windows took the plan
-    from 151 to 142 in 186 s (2026-11-30, offline). At k = 1 that MILP gives 74 there,
-    and a pass of windows over it found nothing cheaper in 92 s."""
+    and the plans are greedy's; on two_routes at k = 2 the windows took the default
+    run's plan from 142 to 140 in the same 228 s (2026-11-30). At k = 1 that MILP
+    gives 74 there, and a pass of windows over it found nothing cheaper in 92 s."""
     lp = yield from lp_side
     if (stop is not None and stop.is_set()) or not len(lp.columns):
         return lp
