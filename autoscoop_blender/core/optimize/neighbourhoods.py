@@ -3,21 +3,23 @@ positions around them, re-planned by the mast-aware MILP with the rest kept.
 
 The mast-aware MILP over the whole ground is too large to solve (on two_routes at
 k = 2 HiGHS found nothing in 170 s on 24 sites: ``bound.MAX_MULTI_MILP_CANDIDATES``),
-and over the plan's own masts it cannot move a mast. Here each window is small: ``WINDOW_MASTS`` masts of the plan
-near one another, their sensors freed, and ``NEW_SITES`` positions within
-``RADIUS_M`` of them that the plan does not use (those that see the most of what
-the window's sensors see). The rest of the plan is fixed: what it covers counts
-already, a point it covers k' < k times needs k - k' more, and the goal left is the
-goal less what it covers. The MILP then looks only for a window plan cheaper than
-the window's own sensors (HiGHS' cutoff), so an improvement is a cheaper plan that
-still meets the goal: the whole plan's cost falls by as much. Windows are tried
-until a pass over the plan's masts improves nothing (or the time is up); a window is
-tried again only when the plan in and around it has changed.
+and over the plan's own masts it cannot move a mast. Here each window is small:
+``WINDOW_MASTS`` masts of the plan near one another, their sensors freed, and
+``NEW_SITES`` positions within ``RADIUS_M`` of them that the plan does not use
+(those that see the most of what the window's sensors see). The rest of the plan is
+fixed: what it covers counts already, a point it covers k' < k times needs k - k'
+more, and the goal left is the goal less what it covers. The MILP then looks only
+for a window plan cheaper than the window's own sensors (HiGHS' cutoff), so an
+improvement is a cheaper plan that still meets the goal: the whole plan's cost falls
+by as much. Windows are tried until a pass over the plan's masts improves nothing
+(or the time is up); a window is tried again only when the plan in and around it
+has changed.
 
-On two_routes at k = 2 the default run's plan went from 151 (greedy per cost on the
-LP's columns, 82 sensors on 23 masts) to 140 (74 on 22) with the windows, in the same
-228 s; at k = 1 a whole pass over the plan of 74 found nothing cheaper (92 s), so
-the windows run at k > 1 only (``lp._then_windows``).
+On two_routes at k = 2 (2026-11-30) the default run's plan went from 142 (greedy per
+cost on the LP's columns) to 140 (74 sensors on 22 masts) in the same 228 s, and
+offline, on one core, a plan of 151 went to 144 in 150 s. At k = 1 a whole pass over
+the plan of 74 found nothing cheaper (92 s), so the windows run at k > 1 only
+(``lp._then_windows``).
 
 Hand-written around HiGHS: the choice of windows is this problem's own (masts,
 positions, a coverage goal shared by the whole ground).
