@@ -632,7 +632,7 @@ def test_a_plan_on_the_lps_columns_finds_what_the_fewest_masts_hide(monkeypatch)
     real = lp_module.plan_from
 
     def masts_only(problem, cands, inst, pool):
-        if inspect.stack()[1].function == "_then_windows":
+        if "_then_windows" in inspect.stack()[1].function:  # mutmut renames it
             return Cover(inst)
         return real(problem, cands, inst, pool)
 
@@ -791,6 +791,34 @@ def test_the_deadline_and_the_stop_reach_every_solve(monkeypatch):
     for call in (lp, sites, milp):
         assert call["deadline"] == deadline and call["stop"] is stop
     assert calls["_lp_plans"] == []  # masts cost 3: nothing rounded for the sensors alone
+
+
+def test_the_windows_at_k_2_are_handed_the_plan_the_deadline_and_the_stop(monkeypatch):
+    """At k = 2 the windows (``_then_windows``) start from the best plan found before
+    them, at the masts' costs, with the search's deadline and stop, on the
+    candidates' positions; at k = 1 none run."""
+    calls = spy(monkeypatch, "improve_by_windows")
+    rows = [[0, 1, 2, 3], [0, 1, 2, 3], [0, 1, 2, 3], [0, 1, 2], [1, 3], [0, 1, 2, 3]]
+    site_of = [0, 1, 1, 2, 2, 2]
+    problem = HandLP(rows, 4, site_of, need=[2] * 4, objective="cost", max_sensors_per_mast=2)
+    cands = problem.candidates
+    inst = lp_module.instance(cands, problem, np.zeros(4, bool))
+    deadline, stop = time.perf_counter() + 100.0, threading.Event()
+    go = lp_module.prove_and_plan(problem, cands, inst, Solution(np.zeros(4, bool)), deadline, stop)
+    plan, *_ = steps(go)[0]
+    assert sorted(plan) == [1, 2]
+    (windows,) = calls["improve_by_windows"]
+    assert windows["deadline"] == deadline and windows["stop"] is stop
+    assert windows["site_of"] is cands.position and windows["site_xy"] is cands.positions
+    assert windows["mast_cost"] == 3.0 and windows["sensor_cost"] == 1.0
+    # The plan on the LP's columns (site 1's pair, 5) came before them.
+    assert sorted(windows["chosen"]) == [1, 2]
+    calls["improve_by_windows"].clear()
+    problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="cost")
+    inst = lp_module.instance(problem.candidates, problem, np.zeros(7, bool))
+    steps(lp_module.prove_and_plan(problem, problem.candidates, inst, Solution(np.zeros(7, bool)),
+                                   deadline, stop))  # fmt: skip
+    assert calls["improve_by_windows"] == []
 
 
 def test_the_lp_in_parts_is_handed_the_deadline_and_the_stop(monkeypatch):
