@@ -8,6 +8,8 @@ import time
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
 from autoscoop_blender.core.optimize import neighbourhoods
@@ -238,3 +240,30 @@ def test_each_window_solve_is_handed_the_stop_a_cutoff_and_a_time_limit(monkeypa
     calls.clear()
     go = neighbourhoods.improve(inst, inst.site_of, xy, [0, 1], MAST, 1.0, None, stop)
     assert steps(go)[0] == [0, 1] and calls == []
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.data())
+def test_on_random_grounds_every_change_is_cheaper_and_meets_the_goal(data):
+    """Random grounds of up to 7 candidates on up to 3 sites (k = 1 or 2, a partial
+    goal), started from every candidate: each plan yielded costs less than the one
+    before, the last reaches the goal, and none is below the brute-force optimum."""
+    n_points = data.draw(st.integers(2, 5))
+    n_cands = data.draw(st.integers(1, 7))
+    rows = [
+        sorted(data.draw(st.sets(st.integers(0, n_points - 1), min_size=1))) for _ in range(n_cands)
+    ]
+    site_of = [data.draw(st.integers(0, 2)) for _ in range(n_cands)]
+    k = data.draw(st.integers(1, 2))
+    everything = _instance(rows, n_points, site_of, goal=0, cap=n_cands, need=[k] * n_points)
+    seen = np.asarray(everything.matrix.sum(axis=0)).ravel()
+    coverable = int(np.count_nonzero(seen >= k))
+    goal = data.draw(st.integers(0, coverable))
+    inst = _instance(rows, n_points, site_of, goal, n_cands, need=[k] * n_points)
+    xy = [(0.0, 0.0), (6.0, 0.0), (0.0, 6.0)]
+    start = list(range(n_cands))
+    plan, yielded = _improve(inst, xy, start)
+    costs = [_cost(inst, p) for p in [start, *yielded]]
+    assert all(b < a for a, b in zip(costs, costs[1:], strict=False))
+    assert _reaches(inst, plan) and _cost(inst, plan) == costs[-1]
+    assert costs[-1] >= _brute_force(inst, MAST, np.zeros(3, bool))
