@@ -658,7 +658,7 @@ def _then_windows(
     each cheaper plan is yielded as an ``Incumbent``. At k > 1 only: there the
     mast-aware MILP over the plan's masts is too large (``MAX_MULTI_MILP_CANDIDATES``)
     and the plans are greedy's; on two_routes at k = 2 the windows took the default
-    run's plan from 142 to 140 in the same 228 s (2026-11-30). At k = 1 that MILP
+    run's plan from 142 to 140, or from 151 to 146, in the same 228 s (2026-11-30). At k = 1 that MILP
     gives 74 there, and a pass of windows over it found nothing cheaper in 92 s."""
     lp = yield from lp_side
     if (stop is not None and stop.is_set()) or not len(lp.columns):

@@ -16,8 +16,8 @@ by as much. Windows are tried until a pass over the plan's masts improves nothin
 has changed.
 
 On two_routes at k = 2 (2026-11-30) the default run's plan went from 142 (greedy per
-cost on the LP's columns) to 140 (74 sensors on 22 masts) in the same 228 s, and
-offline, on one core, a plan of 151 went to 144 in 150 s. At k = 1 a whole pass over
+cost on the LP's columns) to 140 (74 sensors on 22 masts) in the same 228 s, in two
+more runs from 151 to 146, and offline, on one core, from 151 to 144 in 150 s. At k = 1 a whole pass over
 the plan of 74 found nothing cheaper (92 s), so the windows run at k > 1 only
 (``lp._then_windows``).
 
