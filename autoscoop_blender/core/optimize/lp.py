@@ -492,7 +492,7 @@ def prove_bound(
         joint = _JointStart(problem, cands, inst, best, deadline, stop)
         known = joint.keep_sites(_fewest_masts(problem, cands, inst, deadline, stop, milp))
         lp_gen = joint.then(lp_gen)
-    if plan and part is None and inst.multi:
+    if plan and _by_windows(inst, part):
         lp_gen = _then_windows(problem, cands, inst, held, lp_gen, deadline, stop)
     masts = masts_then_plan(
         problem, cands, inst, deadline, stop, plan, milp, known, every_start=part is not None
@@ -531,8 +531,6 @@ def prove_bound(
     plan_bound = _plan_bound(lp, sites, cands, problem)
     if on_sites and plan_value(problem, cands, on_sites) < best:
         best = hold_best(problem, cands, solution, [on_sites])
-    if on_sites and plan_value(problem, cands, on_sites) < held.value:
-        held.value, held.chosen = plan_value(problem, cands, on_sites), on_sites
     if joint is not None and lp.pi is not None:
         more = _joint_bound(
             problem, cands, inst, lp, plan_bound, best, joint.solved, deadline, stop
@@ -643,6 +641,12 @@ class _JointStart:
         )
 
 
+def _by_windows(inst: CoverInstance, part: PartInputs | None) -> bool:
+    """Whether the plan is improved by windows (``_then_windows``): at k > 1 on a
+    ground planned whole."""
+    return part is None and inst.multi
+
+
 def _then_windows(
     problem: Problem,
     cands: CandidateSet,
@@ -743,8 +747,7 @@ def prove_and_plan(
     lower = bound.objective(s.objective, s.mast_cost, s.sensor_cost)
     plans = [g.chosen for g in greedies if g.slack >= 0] + ([on_sites] if on_sites else [])
     # At k > 1 on a whole ground ``_then_windows`` built this plan already.
-    windows = part is None and inst.multi
-    if len(lp.columns) and (stop is None or not stop.is_set()) and not windows:
+    if len(lp.columns) and (stop is None or not stop.is_set()) and not _by_windows(inst, part):
         # The LP spreads a k > 1 cover over sites that the fewest masts, which count
         # what a site sees once and not the sensors it can carry, do not show: on
         # two_routes at k = 2 this plan was 76 sensors on 22 masts (142; 136 over

@@ -78,16 +78,13 @@ def window(
     freed: I64,
     tree: cKDTree,
     taken: NDArray[np.bool_],
-) -> Window | None:
+) -> Window:
     """The MILP of the window ``freed`` (sites of the plan ``chosen``): their sensors
     and those of up to ``NEW_SITES`` free positions within ``RADIUS_M``, the best
     first by how many points of the window's sensors their best candidate sees.
-    ``tree``: a KD-tree of ``site_xy``; ``taken``: (sites,) the sites the plan uses.
-    None when the window holds no sensor."""
+    ``tree``: a KD-tree of ``site_xy``; ``taken``: (sites,) the sites the plan uses."""
     picked = np.asarray(chosen, dtype=np.int64)
     inside = np.isin(site_of[picked], freed)
-    if not inside.any():
-        return None
     kept, own = picked[~inside], picked[inside]
     counts = np.zeros(inst.n_points, dtype=np.int64)
     if len(kept):
@@ -177,8 +174,6 @@ def improve(
             )
             freed = np.sort(in_plan[np.atleast_1d(nearest)])
             w = window(inst, site_of, site_xy, plan, freed, tree, taken)
-            if w is None:
-                continue
             key = (
                 tuple(freed.tolist()), tuple(w.cols[w.start].tolist()), w.inst.goal,
                 w.inst.n_points, int(w.inst.k.sum()),
