@@ -821,6 +821,98 @@ def test_the_windows_at_k_2_are_handed_the_plan_the_deadline_and_the_stop(monkey
     assert calls["improve_by_windows"] == []
 
 
+def _scripted_windows(monkeypatch, script):
+    """``improve_by_windows`` replaced: each call records its start plan and the
+    generator's close, and yields ``script``'s plans for it (None: HiGHS at work)."""
+    runs = []
+
+    def scripted(inst, site_of, site_xy, chosen, *rest):
+        run = {"chosen": list(chosen), "closed": False}
+        runs.append(run)
+        try:
+            yield from script[len(runs) - 1]
+        except GeneratorExit:
+            run["closed"] = True
+            raise
+        return chosen
+
+    monkeypatch.setattr(lp_module, "improve_by_windows", scripted)
+    return runs
+
+
+def test_windows_go_on_from_their_own_plan_unless_a_better_one_comes(monkeypatch):
+    """The windows start from the best plan so far ([0, 1, 2, 3], sites 0-2: 3 x 3 +
+    4 = 13), and their cheaper plans are incumbents. A pause (a new ``steps``) goes on
+    where they were while their plan is the best; a better plan from elsewhere (5)
+    closes them and starts them again from it; once they end nothing runs until a
+    still better plan comes."""
+    rows = [[0, 1, 2, 3], [0, 1, 2, 3], [0, 1, 2, 3], [0, 1, 2], [1, 3], [0, 1, 2, 3]]
+    problem = HandLP(rows, 4, [0, 1, 1, 2, 2, 2], need=[2] * 4, objective="cost")
+    cands = problem.candidates
+    inst = lp_module.instance(cands, problem, np.zeros(4, bool))
+    runs = _scripted_windows(monkeypatch, [[None, [0, 1, 2], None, [0, 3]], [None], []])
+    held = lp_module._Held(13.0, [0, 1, 2, 3])
+    windows = lp_module._Windows(problem, cands, inst, held, None, None)
+    first = windows.steps()
+    got = [next(first), next(first)]
+    assert got[0] is None and got[1] == lp_module.Incumbent(9.0, [0, 1, 2])
+    held.value, held.chosen = got[1].value, got[1].chosen  # as prove_bound holds it
+    rest = steps(windows.steps())[1]  # paused, then on: the same windows
+    assert rest == [None, lp_module.Incumbent(8.0, [0, 3])] and len(runs) == 1
+    held.value, held.chosen = 8.0, [0, 3]
+    # They have ended: nothing runs on the plan they ended on.
+    assert steps(windows.steps())[1] == [] and len(runs) == 1
+    # A better plan from elsewhere: the windows again, from it.
+    held.value, held.chosen = 5.0, [1, 2]
+    assert steps(windows.steps())[1] == [None]
+    assert [r["chosen"] for r in runs] == [[0, 1, 2, 3], [1, 2]]
+    # One closed while at work when a better plan comes.
+    runs.clear()
+    runs = _scripted_windows(monkeypatch, [[None, None], [None]])
+    held = lp_module._Held(13.0, [0, 1, 2, 3])
+    windows = lp_module._Windows(problem, cands, inst, held, None, None)
+    assert next(windows.steps()) is None
+    held.value, held.chosen = 5.0, [1, 2]
+    assert steps(windows.steps())[1] == [None]
+    assert [(r["chosen"], r["closed"]) for r in runs] == [([0, 1, 2, 3], True), ([1, 2], False)]
+    # No plan reaches the goal: no windows.
+    empty = lp_module._Windows(problem, cands, inst, lp_module._Held(math.inf, []), None, None)
+    assert steps(empty.steps())[1] == [] and len(runs) == 2
+
+
+def test_windows_run_while_the_joint_lp_waits(monkeypatch):
+    """While the joint LP cannot start (the fewest masts not known yet), the side
+    that waits for it steps the windows instead of idling; once it can start, it
+    does, and the windows wait for the sensors LP's side."""
+    rows = [[0, 1, 2, 3], [0, 1, 2, 3], [0, 1, 2, 3], [0, 1, 2], [1, 3], [0, 1, 2, 3]]
+    problem = HandLP(rows, 4, [0, 1, 1, 2, 2, 2], need=[2] * 4, objective="cost")
+    cands = problem.candidates
+    inst = lp_module.instance(cands, problem, np.zeros(4, bool))
+    runs = _scripted_windows(monkeypatch, [[None, [0, 1, 2], None, None]])
+    held = lp_module._Held(13.0, [0, 1, 2, 3])
+    windows = lp_module._Windows(problem, cands, inst, held, None, None)
+    joint = lp_module._JointStart(problem, cands, inst, 100.0, None, None, windows)
+    started = []
+
+    def fake_joint_bound(*args, **kwargs):
+        started.append(True)
+        yield "joint"
+        return 0.0
+
+    monkeypatch.setattr(lp_module, "joint_bound", fake_joint_bound)
+
+    def done_at_once():
+        return (yield from ())
+
+    gen = joint.then(done_at_once())
+    got = [next(gen), next(gen)]  # no fewest masts yet: the windows' steps
+    assert got == [None, lp_module.Incumbent(9.0, [0, 1, 2])] and not started
+    joint.sites = SiteSolution(1, np.arange(3), np.zeros(0, np.int64))
+    joint.lp = replace(_lp(2.0, columns=(0, 1), x=(1.0, 1.0)), pi=np.ones(4))
+    assert next(gen) == "joint" and started == [True]
+    assert len(runs) == 1 and not runs[0]["closed"]
+
+
 def test_the_lp_in_parts_is_handed_the_deadline_and_the_stop(monkeypatch):
     monkeypatch.setattr(budget, "PART_POINTS", 4)
     calls = spy(monkeypatch, "cover_lp", "split_cover_lp")

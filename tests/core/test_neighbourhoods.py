@@ -18,6 +18,8 @@ from tests.core.test_joint import _brute_force, _instance
 from tests.core.test_lp import steps
 
 MAST = 3.0
+# One mast a window, six positions within 12 m, all candidates.
+ONE_MAST = (neighbourhoods.Size(1, 6, 12.0, 1000),)
 
 
 def _improve(inst, xy, chosen, mast_cost=MAST, stop=None):
@@ -52,9 +54,9 @@ def test_the_rest_of_the_plan_is_kept_and_far_positions_are_not_offered(monkeypa
     """One mast a window. Site 0 carries two sensors ({0}, {1}; 3 + 2 = 5), site 2
     (5 m from it) one that sees both (3 + 1 = 4); site 1, 100 m away, carries {2, 3}
     and has nothing better near it. Site 3, 50 m from both, sees all four points with
-    one candidate (the optimum, 4) but lies beyond ``RADIUS_M`` of each: the plan
+    one candidate (the optimum, 4) but lies beyond 12 m of each: the plan
     goes from 9 to 8, site 1's sensor kept."""
-    monkeypatch.setattr(neighbourhoods, "WINDOW_MASTS", 1)
+    monkeypatch.setattr(neighbourhoods, "SIZES", ONE_MAST)
     rows = [[0], [1], [2, 3], [0, 1], [0, 1, 2, 3]]
     inst = _instance(rows, 4, [0, 0, 1, 2, 3], goal=4, cap=4)
     xy = [(0, 0), (100, 0), (5, 0), (50, 0)]
@@ -80,7 +82,7 @@ def test_a_window_needs_only_what_the_rest_leaves_short(monkeypatch):
     carries two more that see 0 and 1. With site 1's sensor kept, 0 and 1 need one
     more each, so one sensor on site 0 is enough: 9 -> 8, the optimum. Had the
     window asked for both of a point's k it would keep both."""
-    monkeypatch.setattr(neighbourhoods, "WINDOW_MASTS", 1)
+    monkeypatch.setattr(neighbourhoods, "SIZES", ONE_MAST)
     rows = [[0, 1, 2], [0, 1], [0, 1]]
     inst = _instance(rows, 3, [1, 0, 0], goal=3, cap=4, need=[2, 2, 1])
     plan, _ = _improve(inst, [(0, 0), (100, 0)], [0, 1, 2])
@@ -118,34 +120,34 @@ def test_an_optimal_plan_and_a_stopped_search_are_left_as_they_are():
     assert _improve(inst, xy, [0, 1], stop=stop) == ([0, 1], [])
 
 
-def test_a_window_keeps_its_own_sensors_when_candidates_are_trimmed(monkeypatch):
+def test_a_window_keeps_its_own_sensors_when_candidates_are_trimmed():
     """At most 3 candidates a window, over sites 0 and 1 (5 candidates): 3 // 2 = 1 at
     each site, the one that sees the most of the window's points ({0, 1}: what the
     plan's sensor, candidate 1, sees), the first at a tie; and the plan's own sensor."""
-    monkeypatch.setattr(neighbourhoods, "WINDOW_CANDIDATES", 3)
     rows = [[0, 1, 2], [0, 1], [0], [0, 1, 2, 3], [1]]
     inst = _instance(rows, 4, [0, 0, 0, 1, 1], goal=2, cap=4)
-    w = _window(inst, [(0.0, 0.0), (5.0, 0.0)], [1], freed=[0])
+    w = _window(inst, [(0.0, 0.0), (5.0, 0.0)], [1], freed=[0], candidates=3)
     assert w.cols.tolist() == [0, 1, 3] and w.sites.tolist() == [0, 1]
     assert w.cols[w.start].tolist() == [1] and w.inst.goal == 2
     # Exactly as many candidates as allowed (4; 2 a site if trimmed): none is left
     # out, not even candidate 2, which sees the fewest of the window's points.
-    monkeypatch.setattr(neighbourhoods, "WINDOW_CANDIDATES", 4)
     inst = _instance(rows[:4], 4, [0, 0, 0, 1], goal=2, cap=4)
-    w = _window(inst, [(0.0, 0.0), (5.0, 0.0)], [1], freed=[0])
+    w = _window(inst, [(0.0, 0.0), (5.0, 0.0)], [1], freed=[0], candidates=4)
     assert w.cols.tolist() == [0, 1, 2, 3]
 
 
-def _window(inst, xy, chosen, freed):
-    """The window of sites ``freed`` of the plan ``chosen``."""
+def _window(inst, xy, chosen, freed, new_sites=6, candidates=1000):
+    """The window of sites ``freed`` of the plan ``chosen``: at most ``new_sites``
+    positions within 12 m, ``candidates`` candidates."""
     xy = np.asarray(xy, float)
     taken = np.isin(np.arange(len(xy)), inst.site_of[chosen])
-    w = neighbourhoods.window(inst, inst.site_of, xy, chosen, np.asarray(freed), cKDTree(xy), taken)
-    assert w is not None
-    return w
+    size = neighbourhoods.Size(len(freed), new_sites, 12.0, candidates)
+    return neighbourhoods.window(
+        inst, inst.site_of, xy, chosen, np.asarray(freed), cKDTree(xy), taken, size
+    )
 
 
-def test_the_positions_offered_are_those_that_see_most_of_the_windows_points(monkeypatch):
+def test_the_positions_offered_are_those_that_see_most_of_the_windows_points():
     """Site 0 carries the plan's sensor (points 0, 1; point 2 is short of the goal but
     not the window's, point 3 covered by site 4's sensor, 100 m away). Of the free
     positions 5 m away, site 1 sees one of the window's points, site 2 both, site 3
@@ -154,10 +156,8 @@ def test_the_positions_offered_are_those_that_see_most_of_the_windows_points(mon
     rows = [[0, 1], [0], [0, 1], [2, 3], [3]]
     inst = _instance(rows, 4, [0, 1, 2, 3, 4], goal=3, cap=4)
     xy = [(0, 0), (5, 0), (0, 5), (-5, 0), (100, 0)]
-    monkeypatch.setattr(neighbourhoods, "NEW_SITES", 1)
-    assert _window(inst, xy, [0, 4], freed=[0]).sites.tolist() == [0, 2]
-    monkeypatch.setattr(neighbourhoods, "NEW_SITES", 3)
-    w = _window(inst, xy, [0, 4], freed=[0])
+    assert _window(inst, xy, [0, 4], freed=[0], new_sites=1).sites.tolist() == [0, 2]
+    w = _window(inst, xy, [0, 4], freed=[0], new_sites=3)
     assert w.sites.tolist() == [0, 1, 2]
     # The points short of their k that the window's candidates see; the goal less
     # what site 4 covers.
@@ -189,7 +189,7 @@ def test_a_mast_the_rest_makes_redundant_is_closed(monkeypatch):
     """Goal 2 of 4 points, one mast a window: site 0's sensor sees {0, 1}, site 1's
     (100 m away) {2, 3}. Site 0's window (the first, at a tie in sensors) has nothing
     left to cover: it is closed, and site 1's sensor stays (cost 4)."""
-    monkeypatch.setattr(neighbourhoods, "WINDOW_MASTS", 1)
+    monkeypatch.setattr(neighbourhoods, "SIZES", ONE_MAST)
     inst = _instance([[0, 1], [2, 3]], 4, [0, 1], goal=2, cap=4)
     assert _improve(inst, [(0, 0), (100, 0)], [0, 1]) == ([1], [[1]])
     # A goal of nothing: no sensor is needed at all.
@@ -203,7 +203,7 @@ def test_passes_go_on_while_a_window_changes_the_plan(monkeypatch):
     all five points. Site 0's window comes first (fewer sensors) and finds nothing;
     site 1's moves its mast to site 2 (8); then, in a second pass, site 0's window
     has nothing left to cover: 4, the optimum."""
-    monkeypatch.setattr(neighbourhoods, "WINDOW_MASTS", 1)
+    monkeypatch.setattr(neighbourhoods, "SIZES", ONE_MAST)
     rows = [[0], [1, 2], [3, 4], [0, 1, 2, 3, 4]]
     inst = _instance(rows, 5, [0, 1, 1, 2], goal=5, cap=4)
     plan, yielded = _improve(inst, [(0, 0), (100, 0), (105, 0)], [0, 1, 2])
@@ -213,8 +213,9 @@ def test_passes_go_on_while_a_window_changes_the_plan(monkeypatch):
 
 def test_each_window_solve_is_handed_the_stop_a_cutoff_and_a_time_limit(monkeypatch):
     """The MILP of each window gets the search's stop, a cutoff just below the
-    window's own cost, at most ``WINDOW_S`` seconds (never past the deadline) and the
-    window's limit on candidates; a stopped search solves nothing."""
+    window's own cost, at most ``WINDOW_S`` seconds (never past the deadline) and a
+    limit on candidates that lets it solve the window it is given (trimmed already);
+    a stopped search solves nothing."""
     calls = []
     real = neighbourhoods.sensors_on_sites
 
@@ -232,7 +233,8 @@ def test_each_window_solve_is_handed_the_stop_a_cutoff_and_a_time_limit(monkeypa
         go = neighbourhoods.improve(inst, inst.site_of, xy, [0, 1], MAST, 1.0, deadline, stop)
         assert steps(go)[0] == [2]
         limit, handed, cutoff, most, at = calls[0]
-        assert handed is stop and most == neighbourhoods.WINDOW_CANDIDATES
+        # Every candidate of the window (sites 0-2, one each): none is left unsolved.
+        assert handed is stop and most == 3
         assert cutoff == pytest.approx(8.0 - neighbourhoods.EPS, abs=1e-12)
         assert limit <= min(deadline, at + neighbourhoods.WINDOW_S)
         assert limit >= min(deadline, at + neighbourhoods.WINDOW_S) - 0.5
@@ -267,3 +269,37 @@ def test_on_random_grounds_every_change_is_cheaper_and_meets_the_goal(data):
     assert all(b < a for a, b in zip(costs, costs[1:], strict=False))
     assert _reaches(inst, plan) and _cost(inst, plan) == costs[-1]
     assert costs[-1] >= _brute_force(inst, MAST, np.zeros(3, bool))
+
+
+def test_a_larger_window_is_tried_once_the_smaller_find_nothing(monkeypatch):
+    """The ground of the second test (optimum 4: site 3, 50 m from the others, sees
+    all four points with one candidate). Windows of one mast and 12 m take the plan
+    from 9 to 8 and then find nothing; windows of two masts and 60 m are tried next
+    and find the optimum; after that change the smallest windows are tried again, on
+    the new plan (site 3 alone)."""
+    small = neighbourhoods.Size(1, 6, 12.0, 100)
+    large = neighbourhoods.Size(2, 6, 60.0, 100)
+    monkeypatch.setattr(neighbourhoods, "SIZES", (small, large))
+    sizes = []
+    real = neighbourhoods.window
+
+    def spy(inst, site_of, site_xy, chosen, freed, tree, taken, size):
+        sizes.append((size, sorted(set(site_of[chosen].tolist()))))
+        return real(inst, site_of, site_xy, chosen, freed, tree, taken, size)
+
+    monkeypatch.setattr(neighbourhoods, "window", spy)
+    rows = [[0], [1], [2, 3], [0, 1], [0, 1, 2, 3]]
+    inst = _instance(rows, 4, [0, 0, 1, 2, 3], goal=4, cap=4)
+    xy = [(0, 0), (100, 0), (5, 0), (50, 0)]
+    plan, yielded = _improve(inst, xy, [0, 1, 2])
+    assert [_cost(inst, p) for p in yielded] == [8.0, 4.0] and plan == [4]
+    assert _brute_force(inst, MAST, np.zeros(4, bool)) == 4.0
+    # Small windows: site 1's (nothing within 12 m), site 0's (to site 2: 8), then
+    # the same two again (site 1's seen before, site 2's nothing). Then large ones:
+    # site 1's takes its nearest mast, site 2, with it (4). Then the smallest again
+    # on site 3, and the larger once more, both finding nothing.
+    assert [size for size, _ in sizes] == [small] * 4 + [large, small, large]
+    assert [plan for _, plan in sizes] == [[0, 1]] * 2 + [[1, 2]] * 3 + [[3]] * 2
+    # Without the larger windows the plan stays at 8.
+    monkeypatch.setattr(neighbourhoods, "SIZES", (small,))
+    assert _cost(inst, _improve(inst, xy, [0, 1, 2])[0]) == 8.0

@@ -488,12 +488,15 @@ def prove_bound(
     known = None if part is None else part.sites
     joint = None
     apart: PlanBound | None = None  # the bounds apart, once known beside the joint LP
+    windows = None
+    if plan and _by_windows(inst, part):
+        windows = _Windows(problem, cands, inst, held, deadline, stop)
     if part is None and n_parts == 1 and _joint_applies(problem, cands):
-        joint = _JointStart(problem, cands, inst, best, deadline, stop)
+        joint = _JointStart(problem, cands, inst, best, deadline, stop, windows)
         known = joint.keep_sites(_fewest_masts(problem, cands, inst, deadline, stop, milp))
         lp_gen = joint.then(lp_gen)
-    if plan and _by_windows(inst, part):
-        lp_gen = _then_windows(problem, cands, inst, held, lp_gen, deadline, stop)
+    if windows is not None:
+        lp_gen = _then_windows(problem, cands, inst, windows, lp_gen)
     masts = masts_then_plan(
         problem, cands, inst, deadline, stop, plan, milp, known, every_start=part is not None
     )
@@ -565,9 +568,12 @@ class _JointStart:
         best: float,
         deadline: float | None,
         stop: threading.Event | None,
+        windows: _Windows | None = None,
     ) -> None:
         self.problem, self.cands, self.inst = problem, cands, inst
         self.best, self.deadline, self.stop = best, deadline, stop
+        # Run while the joint LP waits for the sensors LP (the core is free).
+        self.meanwhile = None if windows is None else windows.steps()
         self.latest: LPProgress | None = None
         self.sites: SiteSolution | None = None
         self.lp: LPSolution | None = None  # once the LP has ended
@@ -594,7 +600,7 @@ class _JointStart:
             if start is None:
                 if self.lp is not None and self.lp.pi is None and self.latest is None:
                     break  # the LP ended before a round: no duals to start from
-                yield None
+                yield None if self.meanwhile is None else next(self.meanwhile, None)
                 continue
             self.started = True
             columns, duals, sensors = start
@@ -647,37 +653,76 @@ def _by_windows(inst: CoverInstance, part: PartInputs | None) -> bool:
     return part is None and inst.multi
 
 
+class _Windows:
+    """Windows (``neighbourhoods.improve``) on the best plan so far (``held``), run a
+    step at a time by whichever search has a core to spare: the joint LP's while it
+    waits for the sensors LP (``_JointStart.then``), the sensors LP's once it has
+    ended (``_then_windows``). They go on from the plan they have reached unless a
+    better one has come from elsewhere (the plan on the LP's columns), and then start
+    again from that. At k > 1 only: there the mast-aware MILP over the plan's masts
+    is too large (``MAX_MULTI_MILP_CANDIDATES``) and the plans are greedy's. On
+    two_routes at k = 2 the joint LP waited from 46 s to 78 s, and the LP ended at
+    2 min 06 s (2026-11-30)."""
+
+    def __init__(
+        self,
+        problem: Problem,
+        cands: CandidateSet,
+        inst: CoverInstance,
+        held: _Held,
+        deadline: float | None,
+        stop: threading.Event | None,
+    ) -> None:
+        self.problem, self.cands, self.inst, self.held = problem, cands, inst, held
+        self.deadline, self.stop = deadline, stop
+        self.costs = mast_aware_costs(problem, cands, len(cands))
+        self.gen: Generator[list[int] | None, None, list[int]] | None = None
+        self.value = math.inf  # the plan the windows have reached (or ended on)
+
+    def steps(self) -> Generator[Incumbent | None, None, None]:
+        """Steps of the windows until they end (or the best plan is no plan), each
+        cheaper plan as an ``Incumbent``, None while HiGHS works."""
+        while self.held.chosen:
+            if self.held.value < self.value:  # (re)start from the best plan so far
+                if self.gen is not None:
+                    self.gen.close()
+                self.value = self.held.value
+                self.gen = improve_by_windows(
+                    self.inst, self.cands.position, self.cands.positions, self.held.chosen,
+                    *self.costs, self.deadline, self.stop,
+                )  # fmt: skip
+            if self.gen is None:
+                return  # ended on the best plan so far
+            try:
+                plan = next(self.gen)
+            except StopIteration:
+                self.gen = None
+                return
+            if plan is None:
+                yield None
+            else:
+                self.value = plan_value(self.problem, self.cands, plan)
+                yield Incumbent(self.value, plan)
+
+
 def _then_windows(
     problem: Problem,
     cands: CandidateSet,
     inst: CoverInstance,
-    held: _Held,
+    windows: _Windows,
     lp_side: Generator[Any, None, LPSolution],
-    deadline: float | None,
-    stop: threading.Event | None,
 ) -> Generator[Any, None, LPSolution]:
     """``lp_side``'s value (the LP); once it ends, the plan greedy per cost builds on
-    the LP's columns (``plan_from``), and then the best plan so far (``held``)
-    improved window by window (``neighbourhoods.improve``) while the time lasts;
-    each cheaper plan is yielded as an ``Incumbent``. At k > 1 only: there the
-    mast-aware MILP over the plan's masts is too large (``MAX_MULTI_MILP_CANDIDATES``)
-    and the plans are greedy's; on two_routes at k = 2 the windows took the default
-    run's plan from 142 to 140, or from 151 to 146, in the same 228 s (2026-11-30). At k = 1 that MILP
-    gives 74 there, and a pass of windows over it found nothing cheaper in 92 s."""
+    the LP's columns (``plan_from``), yielded as an ``Incumbent``, and then the
+    ``windows`` while the time lasts. On two_routes at k = 2 the windows took the
+    default run's plan from 151 (on the LP's columns) to 142 in 40 s (2026-11-30)."""
     lp = yield from lp_side
-    if (stop is not None and stop.is_set()) or not len(lp.columns):
+    if (windows.stop is not None and windows.stop.is_set()) or not len(lp.columns):
         return lp
     on_lp = plan_from(problem, cands, inst, lp.columns[lp.x > 1e-9])
     if on_lp.slack >= 0:
         yield Incumbent(plan_value(problem, cands, on_lp.chosen), on_lp.chosen)
-    if not held.chosen:  # no plan reaches the goal
-        return lp
-    mc, sc = mast_aware_costs(problem, cands, len(cands))
-    windows = improve_by_windows(
-        inst, cands.position, cands.positions, held.chosen, mc, sc, deadline, stop
-    )
-    for plan in windows:
-        yield None if plan is None else Incumbent(plan_value(problem, cands, plan), plan)
+    yield from windows.steps()
     return lp
 
 
