@@ -24,8 +24,8 @@ of 800, 144 at 176 s; of 250 alone 142 at 69 s and nothing more (all passes done
 
 In the default run at k = 2 they took the plan from 146 to 137 (``lp._Windows``). At
 k = 1 nothing cheaper than two_routes' plan of 74 was found: neither by a whole pass
-of windows of 2,000 candidates (92 s) nor by these sizes in 300 s, so the windows
-run at k > 1 only.
+of windows of 2,000 candidates (92 s) nor by these sizes in 300 s, nor than the
+plans of Town01's three parts (150-180 s each), so the windows run at k > 1 only.
 
 Hand-written around HiGHS: the choice of windows is this problem's own (masts,
 positions, a coverage goal shared by the whole ground).
