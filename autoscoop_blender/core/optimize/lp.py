@@ -661,8 +661,8 @@ class _Windows:
     better one has come from elsewhere (the plan on the LP's columns), and then start
     again from that. At k > 1 only: there the mast-aware MILP over the plan's masts
     is too large (``MAX_MULTI_MILP_CANDIDATES``) and the plans are greedy's. On
-    two_routes at k = 2 the joint LP waited from 46 s to 78 s, and the LP ended at
-    2 min 06 s (2026-11-30)."""
+    two_routes at k = 2 the joint LP waited from about 45 s to 1 min 18-31 s, and the
+    LP ended at 2 min 06-20 s (three runs, 2026-11-30)."""
 
     def __init__(
         self,
