@@ -880,6 +880,41 @@ def test_windows_go_on_from_their_own_plan_unless_a_better_one_comes(monkeypatch
     assert steps(empty.steps())[1] == [] and len(runs) == 2
 
 
+def test_after_the_lp_plans_are_built_on_its_columns_above_each_value(monkeypatch):
+    """Once the LP ends (columns 0, 1, 3, 5 at 1, 0.03, 0.07, 0.5), greedy per cost
+    builds a plan on the columns above 0 (all four), above 0.05 (0, 3, 5) and above
+    0.1 (0, 5), each an incumbent; then the windows run from the best plan so far. A
+    stopped run builds none."""
+    rows = [[0, 1, 2, 3], [0, 1, 2, 3], [0, 1, 2, 3], [0, 1, 2], [1, 3], [0, 1, 2, 3]]
+    problem = HandLP(rows, 4, [0, 1, 1, 2, 2, 2], need=[2] * 4, objective="cost")
+    cands = problem.candidates
+    inst = lp_module.instance(cands, problem, np.zeros(4, bool))
+    calls = spy(monkeypatch, "plan_from")
+    runs = _scripted_windows(monkeypatch, [[None]])
+    held = lp_module._Held(13.0, [0, 1, 2, 3])
+    lp = _lp(2.0, columns=(0, 1, 3, 5), x=(1.0, 0.03, 0.07, 0.5))
+
+    def lp_side():
+        yield "lp at work"
+        return lp
+
+    windows = lp_module._Windows(problem, cands, inst, held, None, None)
+    value, got = steps(lp_module._then_windows(problem, cands, inst, windows, lp_side()))
+    assert value is lp and got[0] == "lp at work" and got[-1] is None
+    pools = [sorted(c["pool"].tolist()) for c in calls["plan_from"]]
+    assert pools == [[0, 1, 3, 5], [0, 3, 5], [0, 5]]
+    plans = [c["returned"].chosen for c in calls["plan_from"]]
+    assert got[1:4] == [lp_module.Incumbent(lp_module.plan_value(problem, cands, p), p)
+                        for p in plans]  # fmt: skip
+    assert len(runs) == 1
+    stop = threading.Event()
+    stop.set()
+    calls["plan_from"].clear()
+    windows = lp_module._Windows(problem, cands, inst, held, None, stop)
+    value, got = steps(lp_module._then_windows(problem, cands, inst, windows, lp_side()))
+    assert value is lp and got == ["lp at work"] and calls["plan_from"] == []
+
+
 def test_windows_run_while_the_joint_lp_waits(monkeypatch):
     """While the joint LP cannot start (the fewest masts not known yet), the side
     that waits for it steps the windows instead of idling; once it can start, it

@@ -99,6 +99,13 @@ log = logging.getLogger(__name__)
 POOL_REDUCED_COST = 0.2
 # LP values at or above which a candidate is kept when rounding, one plan each.
 THRESHOLDS = (0.9, 0.7, 0.5, 0.3, 0.2)
+# At k > 1, the LP values above which its columns are a pool for greedy per cost
+# (``_then_windows``), one plan each. On two_routes at k = 2 (2026-11-30, one stored
+# LP of 320 columns above 0) they gave 151 (above 0), 141 (above 0.05) and 142
+# (above 0.1); above 0.2 and 0.3, 144 and 149: the columns the LP barely uses lead
+# greedy to masts the LP does not want. Windows from those plans (150 s, one core)
+# reached 142 (from 151), 138 (from 141) and 137 (from 142).
+ABOVE = (0.0, 0.05, 0.1)
 # The mast-aware MILP runs on at most this many candidates: two_routes' 13 masts
 # have 2,611 and HiGHS proves the optimum at its root in 18 s; on three tiles of
 # full_ground, 49 masts with about 10,000 took it 1,070 s, while 37 masts with the
@@ -712,17 +719,19 @@ def _then_windows(
     windows: _Windows,
     lp_side: Generator[Any, None, LPSolution],
 ) -> Generator[Any, None, LPSolution]:
-    """``lp_side``'s value (the LP); once it ends, the plan greedy per cost builds on
-    the LP's columns (``plan_from``), yielded as an ``Incumbent``, and then the
-    ``windows`` while the time lasts. On two_routes at k = 2 the windows took the
+    """``lp_side``'s value (the LP); once it ends, the plans greedy per cost builds on
+    the LP's columns (``plan_from``; those above each of ``ABOVE``), each yielded as
+    an ``Incumbent``, and then the ``windows`` (from the best plan so far) while the
+    time lasts. On two_routes at k = 2 the windows took the
     default run's plan from 146 (on the LP's columns) to 137 in 70 s, and in another
     run from 142 to 139 (2026-11-30)."""
     lp = yield from lp_side
-    if (windows.stop is not None and windows.stop.is_set()) or not len(lp.columns):
-        return lp
-    on_lp = plan_from(problem, cands, inst, lp.columns[lp.x > 1e-9])
-    if on_lp.slack >= 0:
-        yield Incumbent(plan_value(problem, cands, on_lp.chosen), on_lp.chosen)
+    for above in ABOVE:
+        if (windows.stop is not None and windows.stop.is_set()) or not len(lp.columns):
+            return lp
+        on_lp = plan_from(problem, cands, inst, lp.columns[lp.x > above + 1e-9])
+        if on_lp.slack >= 0:
+            yield Incumbent(plan_value(problem, cands, on_lp.chosen), on_lp.chosen)
     yield from windows.steps()
     return lp
 
