@@ -726,12 +726,18 @@ def _then_windows(
     default run's plan from 146 (on the LP's columns) to 137 in 70 s, and in another
     run from 142 to 139 (2026-11-30)."""
     lp = yield from lp_side
+    began, values = time.perf_counter(), []
     for above in ABOVE:
         if (windows.stop is not None and windows.stop.is_set()) or not len(lp.columns):
             return lp
         on_lp = plan_from(problem, cands, inst, lp.columns[lp.x > above + 1e-9])
         if on_lp.slack >= 0:
-            yield Incumbent(plan_value(problem, cands, on_lp.chosen), on_lp.chosen)
+            values.append(plan_value(problem, cands, on_lp.chosen))
+            yield Incumbent(values[-1], on_lp.chosen)
+    log.info(
+        "plans on the LP's columns above %s: %s in %.1f s", ABOVE, values,
+        time.perf_counter() - began,
+    )  # fmt: skip
     yield from windows.steps()
     return lp
 
