@@ -5,6 +5,7 @@ out on paper from the rows in each test; the solvers run for real (HiGHS)."""
 
 import inspect
 import itertools
+import logging
 import math
 import threading
 import time
@@ -867,7 +868,6 @@ def test_windows_go_on_from_their_own_plan_unless_a_better_one_comes(monkeypatch
     assert steps(windows.steps())[1] == [None]
     assert [r["chosen"] for r in runs] == [[0, 1, 2, 3], [1, 2]]
     # One closed while at work when a better plan comes.
-    runs.clear()
     runs = _scripted_windows(monkeypatch, [[None, None], [None]])
     held = lp_module._Held(13.0, [0, 1, 2, 3])
     windows = lp_module._Windows(problem, cands, inst, held, None, None)
@@ -880,11 +880,11 @@ def test_windows_go_on_from_their_own_plan_unless_a_better_one_comes(monkeypatch
     assert steps(empty.steps())[1] == [] and len(runs) == 2
 
 
-def test_after_the_lp_plans_are_built_on_its_columns_above_each_value(monkeypatch):
-    """Once the LP ends (columns 0, 1, 3, 5 at 1, 0.03, 0.07, 0.5), greedy per cost
-    builds a plan on the columns above 0 (all four), above 0.05 (0, 3, 5) and above
-    0.1 (0, 5), each an incumbent; then the windows run from the best plan so far. A
-    stopped run builds none."""
+def test_after_the_lp_plans_are_built_on_its_columns_above_each_value(monkeypatch, caplog):
+    """Once the LP ends (columns 0, 1, 3, 5, 2 at 1, 0.03, 0.07, 0.5, 0), greedy per
+    cost builds a plan on the columns above 0 (the first four), above 0.05 (0, 3, 5)
+    and above 0.1 (0, 5), each an incumbent, logged with their costs; then the
+    windows run from the best plan so far. A stopped run builds none."""
     rows = [[0, 1, 2, 3], [0, 1, 2, 3], [0, 1, 2, 3], [0, 1, 2], [1, 3], [0, 1, 2, 3]]
     problem = HandLP(rows, 4, [0, 1, 1, 2, 2, 2], need=[2] * 4, objective="cost")
     cands = problem.candidates
@@ -892,21 +892,26 @@ def test_after_the_lp_plans_are_built_on_its_columns_above_each_value(monkeypatc
     calls = spy(monkeypatch, "plan_from")
     runs = _scripted_windows(monkeypatch, [[None]])
     held = lp_module._Held(13.0, [0, 1, 2, 3])
-    lp = _lp(2.0, columns=(0, 1, 3, 5), x=(1.0, 0.03, 0.07, 0.5))
+    lp = _lp(2.0, columns=(0, 1, 3, 5, 2), x=(1.0, 0.03, 0.07, 0.5, 0.0))
 
     def lp_side():
         yield "lp at work"
         return lp
 
     windows = lp_module._Windows(problem, cands, inst, held, None, None)
-    value, got = steps(lp_module._then_windows(problem, cands, inst, windows, lp_side()))
+    with caplog.at_level(logging.INFO, logger=lp_module.log.name):
+        value, got = steps(lp_module._then_windows(problem, cands, inst, windows, lp_side()))
     assert value is lp and got[0] == "lp at work" and got[-1] is None
     pools = [sorted(c["pool"].tolist()) for c in calls["plan_from"]]
     assert pools == [[0, 1, 3, 5], [0, 3, 5], [0, 5]]
     plans = [c["returned"].chosen for c in calls["plan_from"]]
-    assert got[1:4] == [lp_module.Incumbent(lp_module.plan_value(problem, cands, p), p)
-                        for p in plans]  # fmt: skip
+    values = [lp_module.plan_value(problem, cands, p) for p in plans]
+    assert got[1:4] == [lp_module.Incumbent(v, p) for v, p in zip(values, plans, strict=True)]
     assert len(runs) == 1
+    (logged,) = [r.getMessage() for r in caplog.records if "LP's columns above" in r.getMessage()]
+    head = f"plans on the LP's columns above (0.0, 0.05, 0.1): {values} in "
+    assert logged.startswith(head) and 0.0 <= float(logged[len(head) : -2]) < 60.0
+    assert logged.endswith(" s")
     stop = threading.Event()
     stop.set()
     calls["plan_from"].clear()
