@@ -722,13 +722,15 @@ def _then_windows(
     """``lp_side``'s value (the LP); once it ends, the plans greedy per cost builds on
     the LP's columns (``plan_from``; those above each of ``ABOVE``), each yielded as
     an ``Incumbent``, and then the ``windows`` (from the best plan so far) while the
-    time lasts. On two_routes at k = 2 the windows took the
-    default run's plan from 146 (on the LP's columns) to 137 in 70 s, and in another
-    run from 142 to 139 (2026-11-30)."""
+    time lasts. On two_routes at k = 2 the windows took the default run's plan from
+    146 (on the LP's columns) to 137 in 70 s, and in another run from 142 to 139
+    (2026-11-30)."""
     lp = yield from lp_side
+    if not len(lp.columns):
+        return lp
     began, values = time.perf_counter(), []
     for above in ABOVE:
-        if (windows.stop is not None and windows.stop.is_set()) or not len(lp.columns):
+        if windows.stop is not None and windows.stop.is_set():
             return lp
         on_lp = plan_from(problem, cands, inst, lp.columns[lp.x > above + 1e-9])
         if on_lp.slack >= 0:

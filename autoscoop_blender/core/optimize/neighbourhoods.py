@@ -156,8 +156,8 @@ def improve(
     stop: threading.Event | None = None,
 ) -> Generator[list[int] | None, None, list[int]]:
     """The plan ``chosen`` (candidates of ``inst``, which meets its goal) improved
-    window by window (see the module docstring) until a pass over its masts finds
-    nothing cheaper, or ``deadline`` / ``stop``. mast_cost: one or (sites,) per site
+    window by window (see the module docstring) until a pass over its masts with the
+    largest windows (``SIZES``) finds nothing cheaper, or ``deadline`` / ``stop``. mast_cost: one or (sites,) per site
     (0 where a mast stands); sensor_cost: one or (C,) per candidate. Yields each
     cheaper plan as found, None while HiGHS works; returns the best."""
     tree = cKDTree(site_xy)
