@@ -109,7 +109,10 @@ TESTS_FOR: dict[str, list[str]] = {
     "autoscoop_blender/core/optimize/joint.py": ["tests/core/test_joint.py"],
     # test_neighbourhoods.py: windows on hand-made grounds against brute-force optima, ~2 s.
     "autoscoop_blender/core/optimize/neighbourhoods.py": ["tests/core/test_neighbourhoods.py"],
+    # test_restricted.py checks the merged restricted LP against linprog and a partition
+    # worked out point by point (~8 s).
     "autoscoop_blender/core/optimize/bound.py": [
+        "tests/core/test_restricted.py",
         "tests/core/test_bound.py",
         "tests/core/test_lp.py",
         "tests/core/test_mixed_pack.py",

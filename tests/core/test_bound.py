@@ -793,6 +793,15 @@ def test_every_rounds_bound_stays_below_the_lp(seed, need):
     assert sol.bound == pytest.approx(whole.value, rel=1e-5, abs=2e-6)
 
 
+def random_needing(rng, n_cand, n_points, need):
+    """``random_instance`` with every point needed ``need`` times, its goal at most
+    the points that enough candidates see."""
+    inst = random_instance(rng, n_cand=n_cand, n_points=n_points)
+    seen = np.bincount(inst.matrix.indices, minlength=n_points)
+    goal = min(inst.goal, int(np.count_nonzero(seen >= need)))
+    return CoverInstance(inst.matrix, goal, need=np.full(n_points, need, np.int32))
+
+
 def full_lp(inst, cost):
     """The cover LP with every candidate at once, by scipy's linprog (HiGHS, no column
     generation): min cost x s.t. M^T x >= k u, sum u >= goal, 0 <= u <= 1, x >= 0
@@ -817,10 +826,7 @@ def test_the_lp_with_candidates_dearer_than_one_is_the_full_lp(seed, need):
     ends at the LP over every candidate, solved at once, and never leaves demand to
     its artificial column, however cheaper than a candidate that would be."""
     rng = np.random.default_rng(1300 + seed)
-    inst = random_instance(rng, n_cand=14, n_points=30)
-    seen = np.bincount(inst.matrix.indices, minlength=30)
-    goal = min(inst.goal, int(np.count_nonzero(seen >= need)))
-    inst = CoverInstance(inst.matrix, goal, need=np.full(30, need, np.int32))
+    inst = random_needing(rng, 14, 30, need)
     cost = rng.uniform(0.5, 5.0, 14)
     sol = drain(cover_lp(inst, cost, np.arange(14), np.zeros(0, np.int64), integral=False))
     assert sol.complete and sol.value == pytest.approx(full_lp(inst, cost), rel=1e-6)
