@@ -203,7 +203,6 @@ class _Model:
     ) -> None:
         self.inst, self.cost, self.site_of, self.standing = inst, cost, site_of, standing
         self.cap = inst.cap
-        self.by_point = sparse.csr_matrix(inst.matrix.T)
         n_cands, n_points = inst.matrix.shape
         # (points, sites) and (sites, points): what an open site adds to a point (the
         # site rows, ``tight``; ``site_cover``'s rows)
@@ -252,11 +251,12 @@ class _Model:
         if not len(points):
             return 0
         k, inst = len(points), self.inst
-        sub = self.by_point[points].tocoo()
-        inside = self.col_of[sub.col] >= 0
+        # The points' entries over the candidates in the LP, from their rows alone (no
+        # copy of the whole matrix by point: 213 MB on two_routes).
+        cands = np.flatnonzero(self.col_of >= 0)
+        sub = inst.matrix[cands][:, points].tocoo()
         rows = sparse.csr_matrix(
-            (sub.data[inside], (sub.row[inside], self.col_of[sub.col[inside]])),
-            shape=(k, self.h.getNumCol()),
+            (sub.data, (sub.col, self.col_of[cands][sub.row])), shape=(k, self.h.getNumCol())
         )
         first = self.h.getNumRow()
         self.h.addRows(k, np.zeros(k), np.full(k, highspy.kHighsInf), rows.nnz,
@@ -409,6 +409,12 @@ class _Model:
         """(C,) every candidate's value in the LP (0 outside it)."""
         return self._values(self.col_of)
 
+    def covered(self) -> F64:
+        """(N,) how much the LP's x covers each point (the sum of its entries)."""
+        cands = np.flatnonzero(self.col_of >= 0)
+        x = np.asarray(self.h.getSolution().col_value)[self.col_of[cands]]
+        return np.asarray(self.inst.matrix[cands].T @ x, dtype=float)
+
 
 def masts_sensors_lp(
     inst: CoverInstance,
@@ -478,7 +484,7 @@ def masts_sensors_lp(
         at_new = np.flatnonzero(np.isin(site_of, new_sites) & (excess > 0))
         at_new = at_new[_top_per_site(excess[at_new], site_of[at_new], cap)]
         # Rows: the points the LP's x leaves short of their k (no row yet).
-        covered = np.asarray(lp.by_point @ lp.x(), dtype=float)
+        covered = lp.covered()
         if tight:  # short of their k in the sites' cover too
             covered = np.minimum(covered, np.asarray(lp.sites_of_point @ lp.y(), dtype=float))
         short = np.flatnonzero((lp.row_of < 0) & (covered < inst.k - 1e-6))
