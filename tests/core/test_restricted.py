@@ -178,3 +178,82 @@ def test_column_generation_over_merged_points_reaches_the_lp_of_a_strip():
     r = bound._Restricted(inst, np.ones(19), 1.0, interior=False)
     r.add(np.arange(19))
     assert r.n_groups == 20 and r.size.tolist() == [10] * 20
+
+
+def _statuses(h):
+    """(the columns' basis statuses, the rows')."""
+    basis = h.getBasis()
+    return list(basis.col_status), list(basis.row_status)
+
+
+def test_the_carried_basis_starts_a_new_group_of_uncovered_points_at_u_zero():
+    """Points 0-4, goal 4: a = {0, 1} at 1 and b = {2, 3} at 1 cover it (the LP 2, x_b
+    basic: the last column). Then c = {3, 4} at 5 joins: it splits b's group ({2} and
+    {3}) and gives point 4, in no row before, a group of its own. The carried basis
+    has as many basics as rows; the new group's u is at its bound 0 and its row's
+    slack basic (its origin is no row, whatever the last column's status); the group
+    split off {3} adds one basic (b's u was not basic, so its row's slack). Solved
+    from it: the same 2 (not without a step: the first optimum is degenerate, its
+    goal dual the artificial's 5, which prices point 4's new u in)."""
+    rows = [[0, 1], [2, 3], [3, 4]]
+    indptr = np.cumsum([0, *map(len, rows)])
+    m = sparse.csr_matrix(
+        (np.ones(indptr[-1], np.float32), np.concatenate(rows), indptr), shape=(3, 5)
+    )
+    r = bound._Restricted(CoverInstance(m, 4), np.array([1.0, 1.0, 5.0]), 5.0, interior=False)
+    r.add(np.array([0, 1]))
+    h = _solve(r)
+    assert h.getInfo().objective_function_value == pytest.approx(2.0)
+    s = highspy.HighsBasisStatus
+    cols, _ = _statuses(h)
+    assert cols[-1] == s.kBasic  # x_b
+    r.add(np.array([2]))
+    assert r.n_groups == 4
+    carried = r._carried(r.basis)
+    cols, rows = list(carried.col_status), list(carried.row_status)
+    assert len(cols) == r.n_groups + 1 + 3 and len(rows) == r.n_groups + 1
+    assert sum(x == s.kBasic for x in cols + rows) == len(rows)
+    alone = r.label[4]
+    assert cols[alone] == s.kLower and rows[alone] == s.kBasic
+    assert cols[-1] == s.kLower  # c, new
+    assert _solve(r).getInfo().objective_function_value == pytest.approx(2.0)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_the_interior_point_model_solves_the_same_lp(seed):
+    """``interior``: the model is for HiGHS' interior point method (no simplex step),
+    no basis carried; the value is linprog's over every point, round after round."""
+    rng = np.random.default_rng(70 + seed)
+    inst = random_needing(rng, 12, 24, 1)
+    cost = rng.uniform(0.5, 2.0, 12)
+    r = bound._Restricted(inst, cost, float(cost.max()), interior=True)
+    for batch in np.array_split(rng.permutation(12), 3):
+        r.add(batch)
+        h = _solve(r)
+        solver = h.getOptionValue("solver")  # (status, value) in highspy 1.15
+        assert (solver[1] if isinstance(solver, tuple) else solver) == "ipm"
+        assert r.basis is None
+        assert h.getInfo().simplex_iteration_count == 0
+        if h.getSolution().col_value[r.n_groups] < 1e-9:
+            cols = np.asarray(r.columns)
+            restricted = CoverInstance(inst.matrix[cols], inst.goal, need=inst.k)
+            value = h.getInfo().objective_function_value
+            assert value == pytest.approx(full_lp(restricted, cost[cols]), abs=1e-6)
+
+
+@pytest.mark.parametrize("few", [True, False])
+def test_the_paying_candidates_cover_the_sum_of_their_entries(few):
+    """``DualPolish._covered``: what the candidates that pay cover, each point the sum
+    of their entries (1, 2 or 3, float32 as the matrix holds them), in float64, the
+    same by their rows alone (few pay: 2 of 60) and by M^T over all (most pay),
+    against the dense sum."""
+    rng = np.random.default_rng(5)
+    inst = random_instance(rng, n_cand=60, n_points=50)
+    m = inst.matrix.copy()
+    m.data = rng.integers(1, 4, m.nnz).astype(np.float32)
+    polish = bound.DualPolish(CoverInstance(m, inst.goal), np.ones(60))
+    pays = np.array([3, 17]) if few else np.arange(0, 60, 2)
+    assert (len(pays) * bound.FEW_PAY < 60) == few
+    got = polish._covered(pays)
+    assert got.dtype == np.float64
+    assert got.tolist() == m.toarray()[pays].astype(np.float64).sum(axis=0).tolist()
