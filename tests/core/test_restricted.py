@@ -180,12 +180,6 @@ def test_column_generation_over_merged_points_reaches_the_lp_of_a_strip():
     assert r.n_groups == 20 and r.size.tolist() == [10] * 20
 
 
-def _statuses(h):
-    """(the columns' basis statuses, the rows')."""
-    basis = h.getBasis()
-    return list(basis.col_status), list(basis.row_status)
-
-
 def test_the_carried_basis_starts_a_new_group_of_uncovered_points_at_u_zero():
     """Points 0-4, goal 4: a = {0, 1} at 1 and b = {2, 3} at 1 cover it (the LP 2, x_b
     basic: the last column). Then c = {3, 4} at 5 joins: it splits b's group ({2} and
@@ -205,8 +199,7 @@ def test_the_carried_basis_starts_a_new_group_of_uncovered_points_at_u_zero():
     h = _solve(r)
     assert h.getInfo().objective_function_value == pytest.approx(2.0)
     s = highspy.HighsBasisStatus
-    cols, _ = _statuses(h)
-    assert cols[-1] == s.kBasic  # x_b
+    assert h.getBasis().col_status[-1] == s.kBasic  # x_b
     r.add(np.array([2]))
     assert r.n_groups == 4
     carried = r._carried(r.basis)
@@ -227,6 +220,7 @@ def test_the_interior_point_model_solves_the_same_lp(seed):
     inst = random_needing(rng, 12, 24, 1)
     cost = rng.uniform(0.5, 2.0, 12)
     r = bound._Restricted(inst, cost, float(cost.max()), interior=True)
+    compared = 0
     for batch in np.array_split(rng.permutation(12), 3):
         r.add(batch)
         h = _solve(r)
@@ -239,6 +233,8 @@ def test_the_interior_point_model_solves_the_same_lp(seed):
             restricted = CoverInstance(inst.matrix[cols], inst.goal, need=inst.k)
             value = h.getInfo().objective_function_value
             assert value == pytest.approx(full_lp(restricted, cost[cols]), abs=1e-6)
+            compared += 1
+    assert compared > 0  # every column at least meets the goal
 
 
 @pytest.mark.parametrize("few", [True, False])
