@@ -16,6 +16,13 @@ from tests.core.test_bound import full_lp, random_needing
 from tests.core.test_lp import drain, random_instance
 
 
+def _of_rows(rows, n_points):
+    """A (candidates, n_points) float32 matrix of 1s: candidate i covers ``rows[i]``."""
+    indptr = np.cumsum([0, *map(len, rows)])
+    data = np.ones(indptr[-1], np.float32)
+    return sparse.csr_matrix((data, np.concatenate(rows), indptr), shape=(len(rows), n_points))
+
+
 def _partition(matrix, columns, need):
     """{point: key}: a point's (k, the (column, entry) pairs of ``columns`` that cover
     it), for the points some column covers, worked out point by point."""
@@ -114,11 +121,7 @@ def test_a_column_that_cannot_help_takes_no_simplex_step():
     2). Then c = {1, 2} at 5 splits both groups in two; the model built again from the
     carried basis is optimal as it stands: 0 simplex iterations, the same value. A
     fourth column d = {0, 1, 2, 3} at 1 helps (the LP 1) and takes a step."""
-    rows = [[0, 1], [2, 3], [1, 2], [0, 1, 2, 3]]
-    indptr = np.cumsum([0, *map(len, rows)])
-    m = sparse.csr_matrix(
-        (np.ones(indptr[-1], np.float32), np.concatenate(rows), indptr), shape=(4, 4)
-    )
+    m = _of_rows([[0, 1], [2, 3], [1, 2], [0, 1, 2, 3]], 4)
     inst = CoverInstance(m, 4)
     cost = np.array([1.0, 1.0, 5.0, 1.0])
     r = bound._Restricted(inst, cost, 5.0, interior=False)
@@ -141,11 +144,7 @@ def test_a_group_split_off_a_fractional_u_keeps_it_basic():
     one half (the LP 1.6, the only optimum: b's group's u basic at 1/2). c = {2} at 5
     splits that group; the part split off keeps the u basic at 1/2 (its row tight),
     so the model built again is optimal as it stands: 0 simplex iterations, 1.6."""
-    rows = [[0, 1], [2, 3], [2]]
-    indptr = np.cumsum([0, *map(len, rows)])
-    m = sparse.csr_matrix(
-        (np.ones(indptr[-1], np.float32), np.concatenate(rows), indptr), shape=(3, 4)
-    )
+    m = _of_rows([[0, 1], [2, 3], [2]], 4)
     r = bound._Restricted(CoverInstance(m, 3), np.array([1.0, 1.2, 5.0]), 5.0, interior=False)
     r.add(np.array([0, 1]))
     h = _solve(r)
@@ -165,11 +164,7 @@ def test_column_generation_over_merged_points_reaches_the_lp_of_a_strip():
     runs those are 2 sum x, so sum u >= 19 needs sum x >= 9.5; every x at 1/2 meets it
     (runs 1-18 covered, the two end runs half): the LP is 9.5, and a run's ten points
     make one group. Column generation from nothing ends there."""
-    rows = [list(range(10 * i, 10 * i + 20)) for i in range(19)]
-    indptr = np.cumsum([0, *map(len, rows)])
-    m = sparse.csr_matrix(
-        (np.ones(indptr[-1], np.float32), np.concatenate(rows), indptr), shape=(19, 200)
-    )
+    m = _of_rows([list(range(10 * i, 10 * i + 20)) for i in range(19)], 200)
     inst = CoverInstance(m, 190)
     sol = drain(bound.cover_lp(inst, np.ones(19), np.arange(19), np.zeros(0, np.int64),
                                integral=False))  # fmt: skip
@@ -189,11 +184,7 @@ def test_the_carried_basis_starts_a_new_group_of_uncovered_points_at_u_zero():
     split off {3} adds one basic (b's u was not basic, so its row's slack). Solved
     from it: the same 2 (not without a step: the first optimum is degenerate, its
     goal dual the artificial's 5, which prices point 4's new u in)."""
-    rows = [[0, 1], [2, 3], [3, 4]]
-    indptr = np.cumsum([0, *map(len, rows)])
-    m = sparse.csr_matrix(
-        (np.ones(indptr[-1], np.float32), np.concatenate(rows), indptr), shape=(3, 5)
-    )
+    m = _of_rows([[0, 1], [2, 3], [3, 4]], 5)
     r = bound._Restricted(CoverInstance(m, 4), np.array([1.0, 1.0, 5.0]), 5.0, interior=False)
     r.add(np.array([0, 1]))
     h = _solve(r)
