@@ -139,17 +139,22 @@ def finish(code: int) -> int:
     bpy's clean-up) interrupts are ignored, since Python's exit puts the default
     actions back and one would kill the process (exit -2) with its work done. The
     watchdog ends the process with ``code`` if that exit takes more than ``GRACE_S``.
-    Returns ``code``."""
+    After an interrupt, or with a solve still in its thread, the process ends here
+    with ``code``, without the interpreter's exit. Otherwise returns ``code``."""
     _State.finished = code
     if _State.wakeup is not None:
         for signum in _SIGNALS:
             signal.signal(signum, signal.SIG_IGN)
         _State.wakeup[1].send(_FINISHED)
     bound = sys.modules.get("autoscoop_blender.core.optimize.bound")
-    if bound is not None and bound.solving():
-        # A cancelled solve still runs in its thread: the interpreter's exit could
-        # abort in HiGHS' clean-up (exit -6; seen once in CI after SIGINT during the
-        # fewest masts' MILP), with everything written. So end here, with ``code``.
+    solving = bound is not None and bound.solving()
+    if solving or _State.signalled or _State.stopped:
+        # The interpreter's exit after an interrupt could abort (exit -6, "GIL
+        # released ... finalizing"): in HiGHS' clean-up while a cancelled solve still
+        # runs in its thread (seen once in CI, SIGINT during the fewest masts' MILP),
+        # and in a thread of the workers' start (seen once in CI, SIGINT 1.6 s into
+        # an es run with 2 workers). The command's own clean-up has run and its
+        # outputs are written, so end here, with ``code``.
         sys.stdout.flush()
         sys.stderr.flush()
         os._exit(code)

@@ -337,3 +337,35 @@ def test_a_run_that_ends_beside_a_solve_still_running_exits_at_once():
     )
     assert proc.returncode == 130 and proc.stdout == "written\n", proc.stderr
     assert time.monotonic() - sent < 20
+
+
+def test_an_interrupted_run_skips_the_interpreters_exit():
+    """Once an interrupted command has ended (its clean-up run, its outputs written),
+    the process ends then and there with its code: the interpreter's exit could abort
+    in another thread (exit -6 in CI, SIGINT 1.6 s into an es run with 2 workers).
+    Here that exit would wait for a non-daemon thread until the watchdog's grace
+    (``GRACE_S``, 3 s) ended it; without the interrupt it is still taken."""
+    script = (
+        "import os, signal, sys, threading, time\n"
+        "from headless import interrupts\n"
+        "interrupts.install()\n"
+        "threading.Thread(target=time.sleep, args=(60,), name='lingering').start()\n"
+        "try:\n"
+        "    if sys.argv[1] == 'interrupted':\n"
+        "        os.kill(os.getpid(), signal.SIGINT)\n"
+        "    time.sleep(0.5)\n"
+        "except KeyboardInterrupt:\n"
+        "    pass\n"
+        "print('written', flush=True)\n"
+        "sys.exit(interrupts.finish(130 if interrupts.signalled() else 0))\n"
+    )
+    for how, code, at_once in (("interrupted", 130, True), ("not", 0, False)):
+        proc = subprocess.Popen(
+            [sys.executable, "-c", script, how], cwd=ROOT, stdout=subprocess.PIPE, text=True
+        )
+        assert proc.stdout is not None and proc.stdout.readline() == "written\n"
+        written = time.monotonic()
+        assert proc.wait(timeout=30) == code
+        took = time.monotonic() - written
+        assert took < 2.0 if at_once else took >= 2.5, (how, took)
+        proc.stdout.close()
