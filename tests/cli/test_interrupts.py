@@ -344,22 +344,28 @@ def test_an_interrupted_run_skips_the_interpreters_exit():
     the process ends then and there with its code: the interpreter's exit could abort
     in another thread (exit -6 in CI, SIGINT 1.6 s into an es run with 2 workers).
     Here that exit would wait for a non-daemon thread until the watchdog's grace
-    (``GRACE_S``, 3 s) ended it; without the interrupt it is still taken."""
+    (``GRACE_S``, 3 s) ended it. The same after an interrupt that stopped the work
+    early (``early_stop``); without an interrupt that exit is still taken."""
     script = (
-        "import os, signal, sys, threading, time\n"
+        "import contextlib, os, signal, sys, threading, time\n"
         "from headless import interrupts\n"
         "interrupts.install()\n"
         "threading.Thread(target=time.sleep, args=(60,), name='lingering').start()\n"
+        "early = sys.argv[1] == 'stopped'\n"
+        "block = interrupts.early_stop(lambda: True) if early else contextlib.nullcontext()\n"
         "try:\n"
-        "    if sys.argv[1] == 'interrupted':\n"
-        "        os.kill(os.getpid(), signal.SIGINT)\n"
-        "    time.sleep(0.5)\n"
+        "    with block:\n"
+        "        if sys.argv[1] != 'not':\n"
+        "            os.kill(os.getpid(), signal.SIGINT)\n"
+        "        time.sleep(0.5)\n"
         "except KeyboardInterrupt:\n"
         "    pass\n"
         "print('written', flush=True)\n"
-        "sys.exit(interrupts.finish(130 if interrupts.signalled() else 0))\n"
+        "ended = interrupts.signalled() or interrupts.stopped()\n"
+        "sys.exit(interrupts.finish(130 if ended else 0))\n"
     )
-    for how, code, at_once in (("interrupted", 130, True), ("not", 0, False)):
+    cases = (("interrupted", 130, True), ("stopped", 130, True), ("not", 0, False))
+    for how, code, at_once in cases:
         proc = subprocess.Popen(
             [sys.executable, "-c", script, how], cwd=ROOT, stdout=subprocess.PIPE, text=True
         )
