@@ -173,6 +173,9 @@ class AUTOSCOOP_PT_results(_Panel, bpy.types.Panel):
             ("Objective", "objective", "{:g}"),
             ("Lower bound", "lower_bound", "{:g}"),
             ("Gap", "gap", "{:.1%}"),
+            # Where the gap lies: each count's own bound (the new masts and sensors).
+            ("Fewest masts", "masts_lower_bound", "≥ {}"),
+            ("Fewest sensors", "sensors_lower_bound", "≥ {}"),
             ("Time", "wall_s", "{:.1f} s"),
         ):
             value = m.get(key)

@@ -281,6 +281,11 @@ def test_every_panel_draws_in_background():
         assert log, cls.__name__
     texts = [entry[1] for entry in log if entry[0] == "label"]  # the results panel
     assert "Coverage" in texts and any(t.endswith("%") for t in texts)
+    m = json.loads(bpy.context.scene.autoscoop.result_json)["metrics"]
+    # Where the gap lies: each count's bound, beside the plan's count.
+    assert texts[texts.index("Fewest masts") + 1] == f"≥ {m['masts_lower_bound']}"
+    assert texts[texts.index("Fewest sensors") + 1] == f"≥ {m['sensors_lower_bound']}"
+    assert 1 <= m["masts_lower_bound"] <= m["masts"]
 
 
 def test_exports_write_every_report(tmp_path):

@@ -49,6 +49,13 @@ def test_default_run_reaches_the_goal(default_run):
         assert key in m
     assert m["sensors"] == len(res["sensors"]) and m["masts"] == len(res["masts"])
     assert res["stop_reason"].startswith("Reached the goal") and f"{m['sensors']} sensors" in stdout
+    # Where its gap lies: each count's own bound, never above the plan's count.
+    assert m["gap"] > 0 and m["masts_lower_bound"] <= m["masts"]
+    assert 0 < m["sensors_lower_bound"] <= m["sensors"]
+    assert (
+        f"no plan on the candidate set has fewer than {m['masts_lower_bound']} masts or fewer "
+        f"than {m['sensors_lower_bound']} sensors; this one has {m['masts']} and {m['sensors']}"
+    ) in stdout.splitlines()
 
 
 def test_recomputed_coverage_agrees(default_run, tmp_path):

@@ -13,13 +13,14 @@ import subprocess
 import sys
 import time
 from dataclasses import replace
+from types import SimpleNamespace
 
 import pytest
 
 from autoscoop_blender.core.budget import Estimate
 from autoscoop_blender.core.optimize.base import Progress
 from autoscoop_blender.io.progress_text import duration, gap, progress_text
-from headless.jobs import estimate_text, time_text
+from headless.jobs import estimate_text, gap_line, time_text
 from headless.progress import LOG_INTERVAL_S, ProgressBar
 from tests.conftest import ROOT
 
@@ -255,3 +256,28 @@ def test_a_piped_run_prints_a_line_at_least_every_10_s(tmp_path):
     assert re.match(r"estimate: peak ~[\d.]+ [MG]iB \(at the \w+ stage\) for lp, ", lines[estimate])
     proofs = [line for line in lines if " | bound " in line and " | gap " in line]
     assert proofs and all(" | best " in line for line in proofs)
+
+
+def _with(**metrics):
+    """A stand-in for a Result: what ``gap_line`` reads."""
+    base = {"gap": 0.15, "masts": 29, "sensors": 73, "masts_lower_bound": 26,
+            "sensors_lower_bound": 58, "existing_masts": 0, "existing_sensors": 0}  # fmt: skip
+    return SimpleNamespace(metrics=base | metrics)
+
+
+def test_the_gap_line_says_the_fewest_masts_and_sensors_against_the_plans():
+    assert gap_line(_with()) == (
+        "no plan on the candidate set has fewer than 26 masts or fewer than 58 sensors; "
+        "this one has 29 and 73"
+    )
+    # With masts standing, the bounds and the counts are the new ones'.
+    assert gap_line(_with(existing_masts=2, existing_sensors=3, masts_lower_bound=1)) == (
+        "no plan on the candidate set has fewer than 1 new mast or fewer than 58 new "
+        "sensors; this one has 27 and 70"
+    )
+    # A count with nothing proven of it is left out; no line at a gap of 0 or no proof.
+    assert gap_line(_with(masts_lower_bound=0)) == (
+        "no plan on the candidate set has fewer than 58 sensors; this one has 73"
+    )
+    assert gap_line(_with(gap=0.0)) is None
+    assert gap_line(_with(gap=None, masts_lower_bound=None, sensors_lower_bound=None)) is None
