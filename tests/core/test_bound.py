@@ -32,6 +32,7 @@ from autoscoop_blender.core.optimize.bound import (
     parts_of,
     sensors_on_sites,
     site_cover,
+    site_matrix,
     split_cover_lp,
 )
 from autoscoop_blender.core.optimize.cover import Cover, CoverInstance, complete
@@ -222,6 +223,12 @@ def test_the_mast_aware_milp_keeps_within_the_cap():
         inst = CoverInstance(instance(rows, 4, 4).matrix, 4, site_of=site_of, cap=cap)
         got = drain(sensors_on_sites(inst, site_of, np.arange(3), [0, 2, 3], 10.0, 1.0))
         assert sorted(got) == want
+    # Four per mast, but 1 planned sensor stands on site 0 already: room for 3 there,
+    # so again e01 and e23 (22), not four on site 0.
+    inst = CoverInstance(instance(rows, 4, 4).matrix, 4, site_of=site_of, cap=4,
+                         held=np.array([1, 0, 0]))  # fmt: skip
+    got = drain(sensors_on_sites(inst, site_of, np.arange(3), [0, 2, 3], 10.0, 1.0))
+    assert sorted(got) == [1, 3]
 
 
 def test_the_fewest_masts_count_each_points_k():
@@ -235,6 +242,13 @@ def test_the_fewest_masts_count_each_points_k():
         inst = CoverInstance(instance(rows, 2, 2).matrix, 2, need=np.full(2, 2, np.int32))
         sol = drain(site_cover(inst, np.array(site_of), 4))
         assert sol.bound == want and len(sol.sites) == want
+        # The sites' matrix as the instance, each row its own site: the same matrix
+        # (site 3 adds 2 to each point) and the same fewest masts.
+        sites = site_matrix(inst, np.array(site_of), 4)
+        by_site = CoverInstance(sites, 2, need=inst.k)
+        assert (site_matrix(by_site, np.arange(4), 4) != sites).nnz == 0
+        assert sites.toarray()[3].tolist() == ([0, 0] if want == 2 else [2, 2])
+        assert drain(site_cover(by_site, np.arange(4), 4)).bound == want
 
 
 def test_masts_that_stand_cost_nothing():

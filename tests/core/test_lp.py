@@ -512,6 +512,30 @@ def test_a_swap_must_cost_less_than_the_two():
     assert cover.chosen == [3]
 
 
+def test_sensors_standing_on_a_mast_count_against_its_cap():
+    """Points 0-2; site 0 holds c0 = {0}, c1 = {1}, c2 = {2}, site 1 holds c3-c5, the
+    same one point each; a cap of 4. With no sensor standing, greedy takes c0, c1 and
+    c2 (ties go to the first), all on site 0; with 2 planned sensors standing on
+    site 0 (``held``), its room is 2, so c2's point comes from site 1 (c5). An
+    independent count: at most 4 - 2 on site 0, all 3 points covered."""
+    rows = [[0], [1], [2], [0], [1], [2]]
+    site_of = np.array([0, 0, 0, 1, 1, 1])
+    matrix = instance(rows, 3, 3).matrix
+    free = complete(Cover(CoverInstance(matrix, 3, site_of=site_of, cap=4)), np.arange(6))
+    assert sorted(free.chosen) == [0, 1, 2]
+    inst = CoverInstance(matrix, 3, site_of=site_of, cap=4, held=np.array([2, 0]))
+    assert inst.room(np.array([0, 1])).tolist() == [2, 4]
+    cover = complete(Cover(inst), np.arange(6))
+    assert sorted(cover.chosen) == [0, 1, 5] and cover.n_covered == 3
+    assert cover.full(0) and not cover.full(1)
+    # Site 0 full before anything is chosen (4 stand there): all from site 1.
+    inst = CoverInstance(matrix, 3, site_of=site_of, cap=4, held=np.array([4, 0]))
+    assert sorted(complete(Cover(inst), np.arange(6)).chosen) == [3, 4, 5]
+    # A sample of the instance keeps what stands.
+    assert CoverInstance(matrix, 3, np.zeros((3, 2)), site_of=site_of, cap=4,
+                         held=np.array([2, 0])).thinned(1.0).held.tolist() == [2, 0]  # fmt: skip
+
+
 def test_a_swap_keeps_within_the_cap():
     """One per site: a = {0} (site 0), b = {1} (site 1), c = {2} (site 2) chosen; d =
     {0, 1} replaces a and b on a site a or b frees (site 0), never on full site 2."""
@@ -746,3 +770,8 @@ def test_a_thinned_instance_keeps_one_point_a_square_and_the_goal_share():
     keep, square = CoverInstance(matrix, 2, xy[::-1]).cells(2.0)
     assert keep.tolist() == [0, 1, 2] and square.tolist() == [0, 1, 2, 2, 2]
     assert inst.cells(2.0)[1].tolist() == [0, 0, 0, 1, 2]
+    # Squares moved by 1 m in x: [-1, 1) holds x = 0 and 0.5, [1, 3) 1.5 and 2.5, and
+    # [3, 5) 4.1, so points 0, 2 and 4 stay; a move in y alone changes nothing here.
+    assert inst.thinned(2.0, (1.0, 0.0)).xy.tolist() == xy[[0, 2, 4]].tolist()
+    assert inst.cells(2.0, (1.0, 0.0))[1].tolist() == [0, 0, 1, 1, 2]
+    assert inst.thinned(2.0, (0.0, 1.0)).xy.tolist() == xy[[0, 3, 4]].tolist()

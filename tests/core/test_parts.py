@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 import threading
 import time
+from collections import Counter
 from dataclasses import replace
 
 import numpy as np
@@ -612,8 +613,9 @@ def _two_masts_one_can_carry():
 
 def test_a_parts_plans_look_at_the_masts_lp_and_the_fewest_masts_sites():
     """The sets a part's plans look for masts at, each with the masts of the parts
-    before (site 4): the fewest masts' MILP's (1, 2), the masts LP's (5, 7) and the
-    fewest masts' LP's (1, 2, 9); without the fewest masts, the masts LP's alone."""
+    before (site 4): the fewest masts' MILP's (1, 2), the masts LP's (5, 7), the
+    fewest masts' LP's (1, 2, 9) and a moved sample's (2, 3); without the fewest
+    masts, the masts LP's alone."""
     empty = CoverInstance(sparse.csr_matrix((0, 0)), 0)
 
     def masts_lp():
@@ -621,12 +623,14 @@ def test_a_parts_plans_look_at_the_masts_lp_and_the_fewest_masts_sites():
         yield  # generators, like the real ones
 
     def fewest():
-        return SiteSolution(3, np.array([1, 2]), np.array([1, 2, 9]))
+        return SiteSolution(3, np.array([1, 2]), np.array([1, 2, 9]), (np.array([2, 3]),))
         yield
 
     found = {}
     got = drain(parts_module.part_sites(masts_lp(), np.array([4]), found, fewest()))
-    assert [s.tolist() for s in got.site_sets()] == [[1, 2, 4], [4, 5, 7], [1, 2, 4, 9]]
+    assert [s.tolist() for s in got.site_sets()] == [
+        [1, 2, 4], [4, 5, 7], [1, 2, 4, 9], [2, 3, 4]
+    ]  # fmt: skip
     assert got.bound == 0 and found["lp"].used.tolist() == [5, 7]
     alone = drain(parts_module.part_sites(masts_lp(), np.array([4]), {}))
     assert [s.tolist() for s in alone.site_sets()] == [[4, 5, 7]]
@@ -666,6 +670,21 @@ def test_the_fewest_masts_of_a_part_count_the_standing_free_and_take_their_share
         )
     assert parts_module.FEWEST_SHARE == 0.4 and seen[0][0] == pytest.approx(4.0, abs=0.2)
     assert parts_module.SAMPLE_CELLS == 2 and seen[0][1:] == (3, 3)
+    # Then the samples moved by half a square (1 m) in x, in y and in both, within the
+    # same 4 s: moved in x, x = 0 and 1 fall in [-1, 1) and [1, 3), so all 4 points
+    # stay; moved in y alone, the same 3 as before.
+    assert parts_module.SAMPLE_OFFSETS == ((0.5, 0.0), (0.0, 0.5), (0.5, 0.5))
+    assert [n for _, n, _ in seen[1:]] == [4, 3, 4]
+    assert all(left <= seen[0][0] for left, _, _ in seen[1:])
+    # Each sample's set is one more set for the plans: here each is site 1 and the
+    # standing site 2 (a mast there costs nothing).
+    assert [s.tolist() for s in one.more] == [[1, 2], [1, 2], [1, 2]]
+    # No time left after the first sample: no moved one.
+    seen.clear()
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(parts_module, "site_cover", spy)
+        late = drain(parts_module.fewest_masts(inst, site_of, standing, 1.0, time.perf_counter(), None))
+    assert len(seen) == 1 and late.more == ()
 
 
 def test_rejoin_moves_a_sensor_to_the_other_mast_and_closes_one():
@@ -846,3 +865,24 @@ def test_a_parts_solve_leaves_time_for_the_builds_after_it():
     assert deadline(100.0, 1000.0, 0.25, [20.0, 40.0], 0) == 325.0
     assert deadline(100.0, 150.0, 0.5, [100.0], 2) == 100.0
     assert deadline(100.0, None, 0.5, [100.0], 2) is None
+
+
+@pytest.mark.parametrize("cap", [1, 2])
+def test_the_parts_plans_keep_the_cap_on_masts_the_parts_before_stood(small_parts, monkeypatch, cap):
+    """A part may put its sensors on a mast a part before stood (at no mast cost), but
+    only as many as the cap leaves there: counted from the joined plan as the seams'
+    re-plan receives it (before that re-plan could repair anything), no mast carries
+    more than ``cap`` sensors; nor does the final plan."""
+    seen = []
+    real = parts_module.rejoin_windows
+
+    def spy(problem, solution, *args):
+        xy = [(f.pose.x, f.pose.y) for f in solution.sensors if not f.existing]
+        seen.append(max(Counter(xy).values()))
+        return (yield from real(problem, solution, *args))
+
+    monkeypatch.setattr(parts_module, "rejoin_windows", spy)
+    s = settings(rho=0.9, max_sensors_per_mast=cap)
+    result = Run(road(), box_caster(WALL), PAPER_CAMERA, s).result()
+    assert len(seen) == 1 and seen[0] <= cap
+    assert max(Counter((f.x, f.y) for f in result.sensors).values()) <= cap

@@ -1189,7 +1189,9 @@ def site_matrix(inst: CoverInstance, site_of: I64, n_sites: int) -> sparse.csr_m
     """(n_sites, points), float64, indices sorted: what an open site adds to a point's
     cover. Site s covers point n when any candidate at s (``site_of``: (C,)) does;
     with k > 1 it adds up to min(its candidates covering n, k_n) (every plan's
-    sensors there are among those candidates); with k = 1, 1."""
+    sensors there are among those candidates); with k = 1, 1. The rows of ``inst``
+    count as many candidates as their entries say (1 each in a candidate matrix), so
+    a site matrix given as ``inst`` with ``site_of`` = its rows comes back the same."""
     m = inst.matrix
     # (Counted in float32, exact for these counts: a float64 copy of a Town01 part's
     # 31 M entries would be 0.25 GB more at the run's peak.)
@@ -1198,7 +1200,7 @@ def site_matrix(inst: CoverInstance, site_of: I64, n_sites: int) -> sparse.csr_m
         (np.ones(len(site_of), one), (site_of, np.arange(len(site_of)))),
         shape=(n_sites, m.shape[0]),
     )
-    seen = sparse.csr_matrix((np.ones(m.nnz, one), m.indices, m.indptr), shape=m.shape)
+    seen = sparse.csr_matrix((m.data.astype(one), m.indices, m.indptr), shape=m.shape)
     sites = (pick @ seen).tocsr().astype(np.float64)
     sites.sort_indices()
     k = inst.k[sites.indices]
@@ -1288,8 +1290,9 @@ def sensors_on_sites(
     """The best plan on ``sites`` by the mast-aware MILP: every candidate at those
     sites, or those of ``cols`` there (x_c, binary, ``sensor_cost``: one for all or
     (C,) per candidate), each site (y_s, binary, ``mast_cost``), ``x_c <= y_s``, at
-    most the instance's ``cap`` candidates per site, and the cover rows. ``start``
-    (candidates at those sites that reach the goal) is HiGHS' first incumbent. At most
+    most the instance's ``cap`` candidates per site (less those standing there,
+    ``held``), and the cover rows. ``start`` (candidates at those sites that reach
+    the goal) is HiGHS' first incumbent. At most
     ``MAX_NODES`` branch-and-bound nodes, so the answer does not depend on the
     machine's speed; stops at ``deadline`` or ``stop`` with the best plan so far.
     ``cutoff``: only plans whose objective is below it are looked for (HiGHS prunes
@@ -1316,7 +1319,8 @@ def sensors_on_sites(
     h.addCols(n_sites, cost_at(mast_cost, sites), np.zeros(n_sites), np.ones(n_sites), 0,
               np.zeros(n_sites, dtype=np.int32), none, np.zeros(0))  # fmt: skip
     # Columns: the n u, then the x of cols, then the y of sites. Rows, each <= 0:
-    # x_c - y_s for each candidate, and with a cap sum_{c at s} x_c - cap y_s per site.
+    # x_c - y_s for each candidate, and with a cap sum_{c at s} x_c - room_s y_s per
+    # site (the cap less the sensors standing there, ``CoverInstance.room``).
     x_col, y_col = n + np.arange(n_cols), n + n_cols + np.arange(n_sites)
     row, col = [np.arange(n_cols)] * 2, [x_col, y_col[site_idx]]
     val = [np.ones(n_cols), -np.ones(n_cols)]
@@ -1324,7 +1328,7 @@ def sensors_on_sites(
     if inst.cap is not None:
         row += [n_cols + site_idx, n_cols + np.arange(n_sites)]
         col += [x_col, y_col]
-        val += [np.ones(n_cols), np.full(n_sites, -float(inst.cap))]
+        val += [np.ones(n_cols), -inst.room(sites).astype(float)]
         n_rows += n_sites
     rows = (np.concatenate(val), (np.concatenate(row), np.concatenate(col)))
     _le_zero_rows(h, sparse.csr_matrix(rows, shape=(n_rows, n + n_cols + n_sites)))

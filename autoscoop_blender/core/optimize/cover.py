@@ -17,7 +17,8 @@ each cheap enough to repeat thousands of times on 130,000 candidates:
   lowers the cost.
 
 Candidates may cost differently (a pack of models); the instance may cap the
-candidates one mast site holds (``CoverInstance.cap``): the moves keep within it.
+candidates one mast site holds (``CoverInstance.cap``, less the sensors standing
+there already): the moves keep within it.
 
 They are hand-written because no library does partial set cover moves on sparse
 matrices; the LP behind them is HiGHS (``bound.py``).
@@ -40,7 +41,8 @@ class CoverInstance:
     xy: (N, 2) where the points are, m (None if not known); need: (N,) candidates
     that must cover each point for it to count (None: 1 each); site_of: (C,) each
     candidate's mast site and cap: the most candidates one site may hold (None: no
-    limit; both or neither)."""
+    limit; both or neither); held: (sites,) the planned sensors that stand at each
+    site already, which count against its cap (None: none)."""
 
     matrix: sparse.csr_matrix
     goal: int
@@ -48,6 +50,7 @@ class CoverInstance:
     need: NDArray[np.int32] | None = None
     site_of: I64 | None = None
     cap: int | None = None
+    held: I64 | None = None
     _by_point: sparse.csc_matrix | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
@@ -65,6 +68,14 @@ class CoverInstance:
         """Whether some point needs more than one candidate."""
         return bool(len(self.k) and int(self.k.max()) > 1)
 
+    def room(self, sites: I64) -> I64:
+        """(len(sites),) how many more candidates each of ``sites`` may hold: the cap
+        less what stands there already (``held``). Needs ``cap``."""
+        assert self.cap is not None
+        sites = np.asarray(sites)
+        held = np.zeros(sites.shape, np.int64) if self.held is None else self.held[sites]
+        return np.maximum(self.cap - held, 0).astype(np.int64)
+
     @property
     def n_points(self) -> int:
         return int(self.matrix.shape[1])
@@ -81,29 +92,31 @@ class CoverInstance:
             self._by_point = self.matrix.tocsc()
         return self._by_point
 
-    def cells(self, cell_m: float) -> tuple[I64, I64]:
-        """The squares of ``cell_m`` the points fall in: (S,) the first point of each
-        square, in the points' order, and (N,) the square of each point, as an index
-        into those. Needs ``xy``."""
+    def cells(self, cell_m: float, offset: tuple[float, float] = (0.0, 0.0)) -> tuple[I64, I64]:
+        """The squares of ``cell_m`` the points fall in (their grid moved by ``offset``,
+        m): (S,) the first point of each square, in the points' order, and (N,) the
+        square of each point, as an index into those. Needs ``xy``."""
         assert self.xy is not None
-        cell = np.floor(self.xy / cell_m).astype(np.int64)
+        cell = np.floor((self.xy + np.asarray(offset)) / cell_m).astype(np.int64)
         _, first, square = np.unique(cell, axis=0, return_index=True, return_inverse=True)
         order = np.argsort(first)
         rank = np.empty_like(order)
         rank[order] = np.arange(len(order))
         return first[order].astype(np.int64), rank[square.ravel()].astype(np.int64)
 
-    def thinned(self, cell_m: float) -> CoverInstance:
+    def thinned(self, cell_m: float, offset: tuple[float, float] = (0.0, 0.0)) -> CoverInstance:
         """The instance on one point per square of ``cell_m`` (the first in the
-        square, ``cells``), its goal the same share of the points, rounded up: a
-        cheaper model of the ground for a heuristic or a start that needs no proof
-        (no bound of the sample's is one of the whole). Needs ``xy``."""
+        square, ``cells``; the squares moved by ``offset``, m), its goal the same share
+        of the points, rounded up: a cheaper model of the ground for a heuristic or a
+        start that needs no proof (no bound of the sample's is one of the whole).
+        Needs ``xy``."""
         assert self.xy is not None
-        keep, _ = self.cells(cell_m)
+        keep, _ = self.cells(cell_m, offset)
         goal = -(-self.goal * len(keep) // max(self.n_points, 1))
         return CoverInstance(
-            self.matrix[:, keep].tocsr(), goal, self.xy[keep], self.k[keep], self.site_of, self.cap
-        )
+            self.matrix[:, keep].tocsr(), goal, self.xy[keep], self.k[keep], self.site_of,
+            self.cap, self.held,
+        )  # fmt: skip
 
 
 class Cover:
@@ -120,9 +133,13 @@ class Cover:
             self.add(c)
 
     def full(self, site: int) -> bool:
-        """Whether ``site`` holds as many chosen candidates as its cap allows."""
-        cap = self.inst.cap
-        return cap is not None and self.at_site.get(site, 0) >= cap
+        """Whether ``site`` holds as many chosen candidates as its cap allows (less
+        the sensors that stand there already)."""
+        inst = self.inst
+        if inst.cap is None:
+            return False
+        held = 0 if inst.held is None else int(inst.held[site])
+        return self.at_site.get(site, 0) >= inst.cap - held
 
     @property
     def slack(self) -> int:
@@ -204,7 +221,7 @@ def complete(
     capped = inst.site_of if inst.cap is not None else None
     if capped is not None:
         full = [s for s in cover.at_site if cover.full(s)]
-        gains[np.isin(capped[pool], full)] = -1.0
+        gains[np.isin(capped[pool], full) | (inst.room(capped[pool]) == 0)] = -1.0
     if site_of is not None:
         site = site_of[pool]
         used = np.isin(site, site_of[cover.chosen])
@@ -313,7 +330,8 @@ def swap_two_for_one(
         if inst.cap is not None and inst.site_of is not None:
             freed = {int(inst.site_of[a]), int(inst.site_of[b])}
             full = [s for s in cover.at_site if cover.full(s) and s not in freed]
-            gains[np.isin(inst.site_of[pool], full)] = -1.0
+            at = inst.site_of[pool]
+            gains[np.isin(at, full) | (inst.room(at) == 0)] = -1.0
         k = int(np.argmax(gains))
         if gains[k] >= need:
             cover.remove(a)

@@ -140,7 +140,10 @@ def window(
     matrix = sparse.csr_matrix(sub[:, points])
     local_site = np.searchsorted(sites, site_of[cols]).astype(np.int64)
     need = (inst.k[points] - counts[points]).astype(np.int32)
-    sub_inst = CoverInstance(matrix, max(goal, 0), need=need, site_of=local_site, cap=inst.cap)
+    held = None if inst.held is None else inst.held[sites]
+    sub_inst = CoverInstance(
+        matrix, max(goal, 0), need=need, site_of=local_site, cap=inst.cap, held=held
+    )
     start = np.searchsorted(cols, own).astype(np.int64).tolist()
     return Window(sub_inst, cols, sites, local_site, start)
 

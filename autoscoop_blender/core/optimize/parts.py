@@ -144,6 +144,12 @@ FEWEST_SHARE = 0.4
 # points gave the same 10 masts as every point, in 7 s instead of 41 s, and they cover
 # 99.0 % of the part's points for a goal of 97 % (2026-11-27/28).
 SAMPLE_CELLS = 2
+# The offsets, in squares, of the samples that look for more sets of the fewest masts
+# (``fewest_masts``). The sets of as few masts differ in what their plans cost: on
+# Town01's first part alone, 4-5 s each, the unmoved sample's 9 masts carry 26 sensors
+# at best (the mast-aware MILP on all their candidates), the samples moved by half a
+# square in x, in y and in both 24, 25 and 24 (2026-12-06).
+SAMPLE_OFFSETS = ((0.5, 0.0), (0.0, 0.5), (0.5, 0.5))
 # A part's sensors LP gives lines at these fractions of the part's points below its
 # goal, and at all it can cover, where its tangent is steep (``bound.cover_lp``'s
 # ``also_at``): on two_routes in 3 parts one part's 11 sensors counted 0 in the whole's
@@ -230,11 +236,13 @@ def split_instance(
     xy: F64,
     cap: int,
     taken: I64,
+    held: I64 | None = None,
 ) -> tuple[CoverInstance, I64]:
     """The cover instance of a part (goal 0; set it with ``replace``): its points
     (ordinals ``points``, the matrix's columns) not yet ``covered``, each needing its
-    k less ``counts``; the ``taken`` candidates (fixed already) cover nothing more.
-    Returns it and the ordinals of its columns."""
+    k less ``counts``; the ``taken`` candidates (fixed already) cover nothing more;
+    ``held``: (positions,) the planned sensors at each mast position already, which
+    count against the ``cap``. Returns it and the ordinals of its columns."""
     matrix = cands.matrix
     if len(taken):
         keep = np.ones(matrix.shape[0], dtype=matrix.dtype)
@@ -245,7 +253,9 @@ def split_instance(
     matrix = matrix[:, cols].tocsr()
     ordinals = points[cols]
     left = np.maximum(need[ordinals] - counts[ordinals], 1).astype(np.int32)
-    inst = CoverInstance(matrix, 0, xy[ordinals], need=left, site_of=cands.position, cap=cap)
+    inst = CoverInstance(
+        matrix, 0, xy[ordinals], need=left, site_of=cands.position, cap=cap, held=held
+    )
     return inst, ordinals
 
 
@@ -389,9 +399,9 @@ def part_sites(
 ) -> Generator[None, None, SiteSolution]:
     """The sets of sites a part's plans look for masts at, each with ``before`` (the
     masts the parts before stood there): those its masts LP (``site_line``) uses and,
-    after it, with ``fewest`` (``fewest_masts``), the fewest masts' MILP's and its
-    LP's. The masts LP (``SiteLP``) goes into ``found`` ("lp", with "seconds") once it
-    is solved."""
+    after it, with ``fewest`` (``fewest_masts``), the fewest masts' MILP's, its
+    LP's and the moved samples' MILPs'. The masts LP (``SiteLP``) goes into ``found``
+    ("lp", with "seconds") once it is solved."""
     t0 = time.perf_counter()
     lp = yield from masts_lp
     found.update(lp=lp, seconds=time.perf_counter() - t0)
@@ -410,7 +420,8 @@ def part_sites(
         np.union1d(on, before).astype(np.int64) if len(on) else on
         for on in (least.sites, least.lp_sites)
     )
-    return SiteSolution(0, milp, mine, (relaxed,))
+    moved = (np.union1d(on, before).astype(np.int64) for on in least.more)
+    return SiteSolution(0, milp, mine, (relaxed, *moved))
 
 
 def fewest_masts(
@@ -422,22 +433,57 @@ def fewest_masts(
     stop: threading.Event | None,
 ) -> Generator[None, None, SiteSolution]:
     """The fewest new masts whose candidates cover what is left of a part
-    (``bound.site_cover`` on ``inst`` thinned to one point in ``SAMPLE_CELLS``²
-    grid cells of ``grid_m``; ``standing``: (sites,) where masts stand, those of the
-    parts before included, at no cost), for at most ``FEWEST_SHARE`` of the part's
+    (``bound.site_cover`` on the sites' matrix of ``inst``, thinned to one point in
+    ``SAMPLE_CELLS``² grid cells of ``grid_m``; ``standing``: (sites,) where masts
+    stand, those of the parts before included, at no cost), for at most ``FEWEST_SHARE`` of the part's
     time left when it starts (``deadline``): where its plans may need fewer masts than
     on the sites its masts LP uses (that LP prices a site at its share of the part, so
-    it spreads over more of them). A heuristic: its bound is the sample's, no proof."""
+    it spreads over more of them); then, while that time lasts, the same on samples
+    whose squares are moved (``SAMPLE_OFFSETS``), their sets as ``more``. A heuristic:
+    its bound is the sample's, no proof."""
     now = time.perf_counter()
     limit = None if deadline is None else now + FEWEST_SHARE * max(0.0, deadline - now)
-    sample = inst.thinned(SAMPLE_CELLS * grid_m)
-    return (yield from site_cover(sample, site_of, len(standing), limit, stop, True, standing))
+    cell = SAMPLE_CELLS * grid_m
+    n_sites = len(standing)
+    # The samples are taken of the sites' matrix, built once: a Town01 part's has
+    # 2.0 M entries where its candidates' have 31 M (sampling the candidates' matrix
+    # for each sample, Town01's run peaked at 2.84 GiB, against 2.58 GiB so).
+    by_site = CoverInstance(site_matrix(inst, site_of, n_sites), inst.goal, inst.xy, inst.k)
+    every = np.arange(n_sites, dtype=np.int64)
+    least = yield from site_cover(by_site.thinned(cell), every, n_sites, limit, stop, True, standing)
+    first_s = time.perf_counter() - now
+    # Samples on squares moved by half a square find other sets of as few masts,
+    # which may carry a cheaper plan (see ``SAMPLE_OFFSETS``), while the time lasts,
+    # each for at most as long as the first took (or 1 s): a part's plans wait for
+    # them (on Town01's third part, without that, 58 s where the first took 7 s).
+    more: list[I64] = []
+    for dx, dy in SAMPLE_OFFSETS:
+        began = time.perf_counter()
+        until = None if limit is None else min(limit, began + max(first_s, 1.0))
+        if (stop is not None and stop.is_set()) or (until is not None and began >= until):
+            break
+        sample = by_site.thinned(cell, (dx * cell, dy * cell))
+        other = yield from site_cover(sample, every, n_sites, until, stop, True, standing)
+        if len(other.sites):
+            more.append(other.sites)
+    return replace(least, more=tuple(more))
 
 
 def _mast_sites(problem: Problem, sensors: list[FixedSensor]) -> I64:
     """The positions (indices into the problem's) of the sensors' masts."""
     found = (problem.space.index_of(f.pose.x, f.pose.y) for f in sensors)
     return np.unique([k for k in found if k is not None]).astype(np.int64)
+
+
+def _held(problem: Problem, sensors: list[FixedSensor]) -> I64:
+    """(positions,) the planned sensors (not those that stood) at each mast position:
+    what counts against the cap of sensors a mast."""
+    held = np.zeros(len(problem.space.positions), dtype=np.int64)
+    for f in sensors:
+        k = problem.space.index_of(f.pose.x, f.pose.y)
+        if k is not None and not f.existing:
+            held[k] += 1
+    return held
 
 
 @contextmanager
@@ -675,7 +721,7 @@ def rejoin(
     s = problem.settings
     inst, ordinals = split_instance(
         cands, every, covered, counts, need, problem.grid.target_xy,
-        s.max_sensors_per_mast, taken_candidates(cands, kept),
+        s.max_sensors_per_mast, taken_candidates(cands, kept), _held(problem, kept),
     )  # fmt: skip
     inst = replace(inst, goal=max(0, problem.goal - int(np.count_nonzero(covered))))
     # The plan as candidates: at each sensor's mast the one that covers the most of
@@ -885,7 +931,7 @@ def solve_in_parts(
             full = replace(full, goal=min(reach[k], math.ceil(goal * open_points[k] / total_open)))
             left, _ = split_instance(
                 cands, points, solution.covered, solution.counts, solution.need, xy,
-                s.max_sensors_per_mast, taken,
+                s.max_sensors_per_mast, taken, _held(problem, solution.sensors),
             )  # fmt: skip
             left = replace(left, goal=min(coverable(left), target))
             if left.goal > 0 and full.goal > 0:
