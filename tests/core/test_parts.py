@@ -870,7 +870,9 @@ def test_a_parts_solve_leaves_time_for_the_builds_after_it():
 
 
 @pytest.mark.parametrize("cap", [1, 2])
-def test_the_parts_plans_keep_the_cap_on_masts_the_parts_before_stood(small_parts, monkeypatch, cap):
+def test_the_parts_plans_keep_the_cap_on_masts_the_parts_before_stood(
+    small_parts, monkeypatch, cap
+):
     """A part may put its sensors on a mast a part before stood (at no mast cost), but
     only as many as the cap leaves there: counted from the joined plan as the seams'
     re-plan receives it (before that re-plan could repair anything), no mast carries

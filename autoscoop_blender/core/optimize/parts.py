@@ -435,12 +435,12 @@ def fewest_masts(
     """The fewest new masts whose candidates cover what is left of a part
     (``bound.site_cover`` on the sites' matrix of ``inst``, thinned to one point in
     ``SAMPLE_CELLS``² grid cells of ``grid_m``; ``standing``: (sites,) where masts
-    stand, those of the parts before included, at no cost), for at most ``FEWEST_SHARE`` of the part's
-    time left when it starts (``deadline``): where its plans may need fewer masts than
-    on the sites its masts LP uses (that LP prices a site at its share of the part, so
-    it spreads over more of them); then, while that time lasts, the same on samples
-    whose squares are moved (``SAMPLE_OFFSETS``), their sets as ``more``. A heuristic:
-    its bound is the sample's, no proof."""
+    stand, those of the parts before included, at no cost), for at most
+    ``FEWEST_SHARE`` of the part's time left when it starts (``deadline``): where its
+    plans may need fewer masts than on the sites its masts LP uses (that LP prices a
+    site at its share of the part, so it spreads over more of them); then, while that
+    time lasts, the same on samples whose squares are moved (``SAMPLE_OFFSETS``),
+    their sets as ``more``. A heuristic: its bound is the sample's, no proof."""
     now = time.perf_counter()
     limit = None if deadline is None else now + FEWEST_SHARE * max(0.0, deadline - now)
     cell = SAMPLE_CELLS * grid_m
@@ -450,7 +450,8 @@ def fewest_masts(
     # for each sample, Town01's run peaked at 2.84 GiB, against 2.58 GiB so).
     by_site = CoverInstance(site_matrix(inst, site_of, n_sites), inst.goal, inst.xy, inst.k)
     every = np.arange(n_sites, dtype=np.int64)
-    least = yield from site_cover(by_site.thinned(cell), every, n_sites, limit, stop, True, standing)
+    first = by_site.thinned(cell)
+    least = yield from site_cover(first, every, n_sites, limit, stop, True, standing)
     first_s = time.perf_counter() - now
     # Samples on squares moved by half a square find other sets of as few masts,
     # which may carry a cheaper plan (see ``SAMPLE_OFFSETS``), while the time lasts,
