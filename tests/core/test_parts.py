@@ -615,19 +615,25 @@ def test_a_parts_plans_look_at_the_masts_lp_and_the_fewest_masts_sites():
     """The sets a part's plans look for masts at, each with the masts of the parts
     before (site 4): the fewest masts' MILP's (1, 2), the masts LP's (5, 7), the
     fewest masts' LP's (1, 2, 9) and a moved sample's (2, 3); without the fewest
-    masts, the masts LP's alone."""
+    masts, the masts LP's alone. The fewest masts are solved first (the masts LP's
+    steps wait for the main thread while the sensors LP works)."""
     empty = CoverInstance(sparse.csr_matrix((0, 0)), 0)
+    order = []
 
     def masts_lp():
+        order.append("masts LP")
         return parts_module.SiteLP((0.0, 0.0), 1, np.array([5, 7]), empty, np.zeros(0), None)
         yield  # generators, like the real ones
 
     def fewest():
+        order.append("fewest")
+        yield None
+        order.append("fewest ends")
         return SiteSolution(3, np.array([1, 2]), np.array([1, 2, 9]), (np.array([2, 3]),))
-        yield
 
     found = {}
     got = drain(parts_module.part_sites(masts_lp(), np.array([4]), found, fewest()))
+    assert order == ["fewest", "fewest ends", "masts LP"]
     assert [s.tolist() for s in got.site_sets()] == [
         [1, 2, 4], [4, 5, 7], [1, 2, 4, 9], [2, 3, 4]
     ]  # fmt: skip

@@ -399,23 +399,32 @@ def part_sites(
 ) -> Generator[None, None, SiteSolution]:
     """The sets of sites a part's plans look for masts at, each with ``before`` (the
     masts the parts before stood there): those its masts LP (``site_line``) uses and,
-    after it, with ``fewest`` (``fewest_masts``), the fewest masts' MILP's, its
-    LP's and the moved samples' MILPs'. The masts LP (``SiteLP``) goes into ``found``
-    ("lp", with "seconds") once it is solved."""
+    with ``fewest`` (``fewest_masts``), the fewest masts' MILP's, its LP's and the
+    moved samples' MILPs'. The masts LP (``SiteLP``) goes into ``found`` ("lp", with
+    "seconds") once it is solved.
+
+    The fewest masts come first. The masts LP's dual steps share the main thread
+    with the sensors LP's steps beside its solves, so they get a slice now and then
+    and end about when that LP does (within 0.3-2 s in each of Town01's parts). With
+    the fewest masts after them, one core idled while their MILPs ran, 19-21 s a
+    part (2026-12-07); first, the MILPs run in HiGHS' thread beside the sensors
+    LP's solves."""
+    least = None
+    if fewest is not None:
+        t1 = time.perf_counter()
+        least = yield from fewest
+        # (Cut short by the part's time, the MILP has no set and its bound is no count.)
+        log.info(
+            "fewest masts: %s (%d sites; %d in its LP) in %.1f s",
+            least.bound if len(least.sites) else "none found", len(least.sites),
+            len(least.lp_sites), time.perf_counter() - t1,
+        )  # fmt: skip
     t0 = time.perf_counter()
     lp = yield from masts_lp
     found.update(lp=lp, seconds=time.perf_counter() - t0)
     mine = np.union1d(lp.used, before).astype(np.int64)
-    if fewest is None:
+    if least is None:
         return SiteSolution(0, mine[:0], mine)
-    t1 = time.perf_counter()
-    least = yield from fewest
-    # (Cut short by the part's time, the MILP has no set and its bound is no count.)
-    log.info(
-        "fewest masts: %s (%d sites; %d in its LP) in %.1f s",
-        least.bound if len(least.sites) else "none found", len(least.sites),
-        len(least.lp_sites), time.perf_counter() - t1,
-    )  # fmt: skip
     milp, relaxed = (
         np.union1d(on, before).astype(np.int64) if len(on) else on
         for on in (least.sites, least.lp_sites)
