@@ -407,8 +407,8 @@ def part_sites(
     with the sensors LP's steps beside its solves, so they get a slice now and then
     and end about when that LP does (within 0.3-2 s in each of Town01's parts). With
     the fewest masts after them, one core idled while their MILPs ran, 19-21 s a
-    part (2026-12-07); first, the MILPs run in HiGHS' thread beside the sensors
-    LP's solves."""
+    part (2026-12-07). Solved first, the MILPs run in HiGHS' thread beside the
+    sensors LP's solves."""
     least = None
     if fewest is not None:
         t1 = time.perf_counter()
