@@ -154,7 +154,8 @@ def test_a_sensor_needs_its_whole_mast():
         np.zeros(0, np.int64), np.zeros(0, np.int64), solved=solved,
     )  # fmt: skip
     steps(go)
-    assert [(lp.masts, lp.complete) for lp in solved] == [(1, True)]
+    # Settled: its bound, 4, is what a solution of the whole LP costs.
+    assert [(lp.masts, lp.settled) for lp in solved] == [(1, True)]
     assert solved[0].value == pytest.approx(4.0) and solved[0].at(1) == pytest.approx(4.0, abs=1e-5)
 
 
@@ -202,9 +203,10 @@ def test_a_point_joins_while_short_of_its_k(monkeypatch):
         np.arange(3), np.zeros(0, np.int64), solved=solved,
     )  # fmt: skip
     assert steps(go)[0] == pytest.approx(6.0)
-    assert solved[0].complete and solved[0].value == pytest.approx(3.0)
-    # Three solves: no row, point 0's, both; the third adds nothing.
-    assert solved[0].rounds == 3
+    assert solved[0].value == pytest.approx(3.0)
+    # Three solves: no row, point 0's, both; the third's solution is one of the whole
+    # LP at 3 sensors, its bound's whole sensors: settled, nothing more to add.
+    assert solved[0].rounds == 3 and solved[0].settled
 
 
 @st.composite
@@ -246,13 +248,90 @@ def test_the_joint_bound_never_exceeds_the_optimum(case, per_round, rows_per_rou
         bound = steps(go)[0]
     assert bound <= best + 1e-6
     for lp in solved:
-        assert lp.complete
+        assert lp.complete or lp.settled
         direct = _direct_lp(inst, lp.masts, standing, tight)
-        if math.isfinite(direct):
+        if math.isfinite(direct) and lp.complete:
             assert lp.value == pytest.approx(direct, abs=1e-5)
             assert lp.at(lp.masts) == pytest.approx(direct, abs=1e-5)
+        elif math.isfinite(direct):  # settled: the same whole sensors as at the end
+            assert math.ceil(lp.at(lp.masts) - 1e-6) == math.ceil(direct - 1e-6)
         for m in range(len(lp.sensors)):
             assert lp.at(m) <= _direct_lp(inst, m, standing, tight) + 1e-6
+
+
+def _check_whole_lp_solution(inst, x, y, reach=None):
+    """x (C,) within its links (x_c <= y_s) and caps (sum at s <= cap y_s), covering
+    the goal, each point counted min(1, covered / k) (and at most reach / k)."""
+    assert np.all(x >= -1e-12) and np.all(x <= y[inst.site_of] + 1e-9)
+    load = np.bincount(inst.site_of, weights=x, minlength=len(y))
+    assert np.all(load <= inst.cap * y + 1e-9)
+    covered = inst.matrix.toarray().T.astype(float) @ x
+    if reach is not None:
+        covered = np.minimum(covered, reach)
+    assert np.minimum(1.0, covered / inst.k).sum() >= inst.goal - 1e-7
+
+
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(instances(), st.data())
+def test_a_repaired_solution_is_one_of_the_whole_lp(case, data):
+    """From any x (C,) and y (sites,) in [0, 1], links broken or not: a repair that
+    succeeds keeps y, and its x' keeps the links and the caps and covers the goal, at
+    the cost it states; so that cost is at least S_LP(m) for every m that y's budget
+    fits (linprog over the whole model)."""
+    inst, standing, _ = case
+    unit = st.floats(0.0, 1.0)
+    x = np.array(data.draw(st.lists(unit, min_size=len(inst.site_of), max_size=len(inst.site_of))))
+    y = np.array(data.draw(st.lists(unit, min_size=len(standing), max_size=len(standing))))
+    cost, fixed = joint.repaired_cost(inst, np.ones(len(x)), inst.site_of, x.copy(), y)
+    if math.isfinite(cost):
+        _check_whole_lp_solution(inst, fixed, y)
+        assert cost == pytest.approx(fixed.sum())
+        masts = math.ceil(float(y[~standing].sum()) - 1e-9)
+        assert cost >= _direct_lp(inst, masts, standing) - 1e-6
+
+
+def test_a_repair_clips_broken_links_and_covers_what_they_lose():
+    """The first test's instance (cap 4, goal 5). Every site open (y = 1) and no x:
+    the repair covers the 5 points, at most 4 at site 0, 5 sensors at most (one per
+    point). Site 0 open at 1/2 with its five candidates at 1 (links broken): they are
+    clipped to 1/2, 4 x 1/2 at the cap of 4 y = 2 at most, so site 0 covers at most
+    2 points' worth; with sites 1 and 2 open the repair covers the rest."""
+    inst = _cap_instance()
+    y = np.ones(3)
+    cost, x = joint.repaired_cost(inst, np.ones(7), inst.site_of, np.zeros(7), y)
+    _check_whole_lp_solution(inst, x, y)
+    assert cost <= 5.0 and cost >= _direct_lp(inst, 3, np.zeros(3, bool)) - 1e-6
+    y = np.array([0.5, 1.0, 1.0])
+    x = np.array([1.0] * 5 + [0.0, 0.0])
+    cost, fixed = joint.repaired_cost(inst, np.ones(7), inst.site_of, x, y)
+    _check_whole_lp_solution(inst, fixed, y)
+    assert np.all(fixed[:5] <= 0.5) and fixed[:5].sum() <= 2.0 + 1e-9
+    assert fixed[5:].sum() > 0  # sites 1 and 2 make up what the clipping lost
+    # Without sites 1 and 2 nothing can: site 0 at 1/2 covers at most 2 points' worth.
+    cost, _ = joint.repaired_cost(inst, np.ones(7), inst.site_of, x, np.array([0.5, 0.0, 0.0]))
+    assert cost == math.inf
+
+
+def test_the_lp_settles_before_its_end_with_the_same_whole_sensors(monkeypatch):
+    """Points 0-2, one site (cap 1), candidates seeing 1, 2 and both 0 and 1; goal 2
+    on 1 mast: one sensor (the third candidate). With one column and one row a round
+    the LP settles at 1 sensor in fewer solves than it takes to its end."""
+    monkeypatch.setattr(joint, "PER_ROUND", 1)
+    monkeypatch.setattr(joint, "ROWS_PER_ROUND", 1)
+    inst = _instance([[1], [2], [0, 1]], 3, [0, 0, 0], goal=2, cap=1)
+
+    def solve(whole):
+        go = joint.masts_sensors_lp(
+            inst, np.ones(3), inst.site_of, np.zeros(1, bool), 1, np.zeros(0, np.int64),
+            np.zeros(0, np.int64), whole=whole,
+        )  # fmt: skip
+        return steps(go)[0]
+
+    to_the_end, settled = solve(False), solve(True)
+    assert to_the_end.complete and not to_the_end.settled
+    assert settled.settled and not settled.complete
+    assert settled.rounds < to_the_end.rounds
+    assert math.ceil(settled.at(1) - 1e-6) == math.ceil(to_the_end.at(1) - 1e-6) == 1
 
 
 @pytest.mark.parametrize(

@@ -57,8 +57,18 @@ over all points and candidates, so the bound holds whenever the search stops. On
 two_routes at m = 13 it passes 31 (S_LP(13) = 31.02; the sensors LP is 30.93) in
 12 rounds, 38 s, and lifts the cost bound from 70 to 71.
 
+**Whole sensors.** The cost bound counts whole sensors, ``ceil(f(m))``, so once a
+solution of the whole LP costs no more than that integer, S_LP(m) is no higher and
+no later round can raise it: the LP stops (``settled``). The restricted LP's own
+solution is none while rows are missing: it may break links it has no row for, and
+it counts the points without a row as covered. ``repaired_cost`` builds one from it:
+each x_c clipped to its site's y, the points still short of the goal covered by
+candidates at the open sites within their links and caps, y unchanged (so the budget
+holds). On two_routes at m = 13 the bound passes 31 in round 9 of 15 and the repaired
+solution costs 31.18 there, so the LP ends 6 rounds early with the same 32 sensors.
+
 Hand-written pricing around HiGHS (which solves each restricted LP): no library
-generates rows and columns of this model.
+generates rows and columns of this model, nor repairs its solutions.
 """
 
 from __future__ import annotations
@@ -95,6 +105,8 @@ log = logging.getLogger(__name__)
 # The most new columns, and new point rows, a round.
 PER_ROUND = 200
 ROWS_PER_ROUND = 500
+# The most candidates that a repair (``repaired_cost``) raises.
+REPAIR_STEPS = 50
 
 
 @dataclass(frozen=True)
@@ -105,13 +117,16 @@ class MastsSensors:
     standing mast): a proven lower bound on the sensors' cost of any plan with at most
     m' new masts, from the best duals found (non-increasing in m'); value: the last
     restricted LP's optimum (not a bound); rounds; complete: no row and no column was
-    left to add, so ``sensors[masts]`` is S_LP(masts) up to the solver's tolerance."""
+    left to add, so ``sensors[masts]`` is S_LP(masts) up to the solver's tolerance;
+    settled: stopped once ``sensors[masts]``, rounded up to whole sensors, could rise
+    no more (see the module docstring)."""
 
     masts: int
     sensors: F64
     value: float
     rounds: int
     complete: bool
+    settled: bool = False
 
     def at(self, m: int) -> float:
         """The bound on the sensors' cost of plans with at most ``m`` new masts."""
@@ -183,6 +198,66 @@ def joint_cost_bound(
     return best, where
 
 
+def repaired_cost(
+    inst: CoverInstance,
+    cost: F64,
+    site_of: I64,
+    x: F64,
+    y: F64,
+    reach: F64 | None = None,
+) -> tuple[float, F64]:
+    """(its cost, x') of a solution of the whole LP (module docstring) made from a
+    restricted one's x (C,) and y (sites,), y kept: each x_c clipped to its site's
+    y (and a site's x scaled down to its cap times y, which the restricted LP's cap
+    rows keep already), then the points short of the goal covered, the most per
+    cost first, by candidates at sites with y > 0, each up to its site's y and
+    within the site's cap times y. A point counts what the x' cover of it, at most
+    its k and, with the site rows, at most ``reach`` (N,) (its site rows' sum of
+    y). (inf, x') when the goal is not met within ``REPAIR_STEPS`` candidates
+    raised. The cost is then an upper bound on S_LP(m) for every m that y's budget
+    fits."""
+    cap = _cap(inst, site_of)
+    x = np.minimum(x, y[site_of])
+    load = np.bincount(site_of, weights=x, minlength=len(y))
+    over = load > cap * y  # (never in the restricted LP's solutions)
+    scale = np.ones(len(y))
+    scale[over] = cap * y[over] / load[over]
+    x = x * scale[site_of]
+    load = np.bincount(site_of, weights=x, minlength=len(y))
+    k = np.maximum(inst.k, 1).astype(float)
+    limit = k if reach is None else np.minimum(k, reach)
+    used = np.flatnonzero(x > 0)
+    covers = np.asarray(inst.matrix[used].T @ x[used], dtype=float)
+
+    def counted() -> float:
+        return float((np.minimum(covers, limit) / k).sum())
+
+    short = inst.goal - counted()
+    pool = np.flatnonzero(y[site_of] > 1e-9)
+    rows = sparse.csr_matrix(inst.matrix[pool], dtype=float)
+    for _ in range(REPAIR_STEPS):
+        if short <= 0:
+            return float(cost @ x), x
+        sites = site_of[pool]
+        room = np.maximum(0.0, np.minimum(y[sites] - x[pool], cap * y[sites] - load[sites]))
+        # What a unit of each candidate adds while no point it raises reaches its limit.
+        wanted = np.where(covers < limit, 1.0 / k, 0.0)
+        rate = np.asarray(rows @ wanted, dtype=float) / cost[pool]
+        rate[room <= 1e-12] = 0.0
+        best = int(np.argmax(rate)) if len(rate) else -1
+        if best < 0 or rate[best] <= 1e-12:
+            break
+        c = pool[best]
+        amount = min(room[best], short / (rate[best] * cost[c]) + 1e-9)
+        before = counted()
+        row = rows[best]
+        covers[row.indices] += amount * row.data
+        x[c] += amount
+        load[site_of[c]] += amount
+        short -= counted() - before
+    return (float(cost @ x), x) if short <= 0 else (math.inf, x)
+
+
 class _Model:
     """The restricted LP in HiGHS, with where each point, site and candidate sits in it.
 
@@ -202,7 +277,7 @@ class _Model:
         tight: bool = False,
     ) -> None:
         self.inst, self.cost, self.site_of, self.standing = inst, cost, site_of, standing
-        self.cap = inst.cap
+        self.cap, self.tight = inst.cap, tight
         n_cands, n_points = inst.matrix.shape
         # (points, sites) and (sites, points): what an open site adds to a point (the
         # site rows, ``tight``; ``site_cover``'s rows)
@@ -409,6 +484,13 @@ class _Model:
         """(C,) every candidate's value in the LP (0 outside it)."""
         return self._values(self.col_of)
 
+    def upper(self) -> float:
+        """The cost of a solution of the whole LP repaired from this one's
+        (``repaired_cost``; with the site rows when built ``tight``)."""
+        y = self.y()
+        reach = np.asarray(self.sites_of_point @ y, dtype=float) if self.tight else None
+        return repaired_cost(self.inst, self.cost, self.site_of, self.x(), y, reach)[0]
+
     def covered(self) -> F64:
         """(N,) how much the LP's x covers each point (the sum of its entries)."""
         cands = np.flatnonzero(self.col_of >= 0)
@@ -428,6 +510,7 @@ def masts_sensors_lp(
     stop: threading.Event | None = None,
     enough: float = math.inf,
     tight: bool = False,
+    whole: bool = False,
 ) -> Generator[None, None, MastsSensors]:
     """The LP of the fewest sensors on at most ``masts`` new masts (see the module
     docstring; with its site rows when ``tight``), by rows and columns, from
@@ -435,8 +518,9 @@ def masts_sensors_lp(
     duals price). cost: (C,) > 0; standing: (sites,) where a mast stands already. Stops when nothing is left to add, at
     ``deadline`` (``time.perf_counter()``), at ``stop``, or once the bound at
     ``masts`` reaches ``enough`` (more would prove nothing the caller needs: the
-    restricted LP's value is no upper bound to stop at while rows are missing). Yields
-    None while HiGHS works."""
+    restricted LP's value is no upper bound to stop at while rows are missing), or,
+    when ``whole`` (costs in whole sensors), once that bound rounded up can rise no
+    more (``settled``, module docstring). Yields None while HiGHS works."""
     n_sites = len(standing)
     cap = _cap(inst, site_of)
     at = min(masts, int(np.count_nonzero(~standing)))  # where the curve holds ``masts``
@@ -445,7 +529,7 @@ def masts_sensors_lp(
     lp.add_points(np.asarray(points, dtype=np.int64))
     lp.add_columns(np.asarray(columns, dtype=np.int64))
     best: F64 | None = None
-    value, rounds, complete, why = math.inf, 0, False, "stopped"
+    value, rounds, complete, settled, why = math.inf, 0, False, False, "stopped"
     while True:
         if deadline is not None:
             limit_to(lp.h, deadline)
@@ -464,6 +548,12 @@ def masts_sensors_lp(
             best = curve
         if best[at] >= enough:
             why = "enough"
+            break
+        # A repair is tried only where it may settle the LP: the restricted LP's value
+        # is no bound, but near the LP's once few rows and columns are missing.
+        sensors = math.ceil(best[at] - 1e-6)
+        if whole and sensors >= value and lp.upper() <= sensors:
+            settled, why = True, "settled"
             break
         if stop is not None and stop.is_set():
             break
@@ -505,7 +595,7 @@ def masts_sensors_lp(
         masts, " (site rows)" if tight else "", why, rounds, time.perf_counter() - began,
         value, best[at],
     )  # fmt: skip
-    return MastsSensors(masts, best, value, rounds, complete)
+    return MastsSensors(masts, best, value, rounds, complete, settled)
 
 
 def enough_sensors(best: float, mast_cost: float, sensor_price: float, masts: int) -> float:
@@ -563,6 +653,6 @@ def joint_bound(
             break
         solved.append((yield from masts_sensors_lp(
             inst, ones, site_of, standing, m, columns, points, deadline, stop,
-            enough_sensors(best, mast_cost, sensor_price, m), tight,
+            enough_sensors(best, mast_cost, sensor_price, m), tight, whole=True,
         )))  # fmt: skip
     return least()[0]
