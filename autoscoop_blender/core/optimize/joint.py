@@ -65,7 +65,7 @@ it counts the points without a row as covered. ``repaired_cost`` builds one from
 each x_c clipped to its site's y, the points still short of the goal covered by
 candidates at the open sites within their links and caps, y unchanged (so the budget
 holds). On two_routes at m = 13 the bound passes 31 in round 9 of 15 and the repaired
-solution costs 31.18 there, so the LP ends 6 rounds early with the same 32 sensors.
+solution costs 31.20 there, so the LP ends 6 rounds early with the same 32 sensors.
 
 Hand-written pricing around HiGHS (which solves each restricted LP): no library
 generates rows and columns of this model, nor repairs its solutions.
