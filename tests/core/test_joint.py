@@ -312,6 +312,18 @@ def test_a_repair_clips_broken_links_and_covers_what_they_lose():
     assert cost == math.inf
 
 
+def test_a_repair_stops_counting_points_that_reached_their_k():
+    """Points 0-2 (k = 1, goal 3), both sites open (cap 2): candidates 0 and 1 at site
+    0 see points 0 and 1, candidate 2 at site 1 sees point 2. The repair raises
+    candidate 0 first (2 points a sensor) to 1, which covers points 0 and 1; candidate
+    1 then adds nothing, so candidate 2 covers point 2: 2 sensors. Were points 0 and 1
+    still counted for candidate 1, it would be raised first, for nothing: 3."""
+    inst = _instance([[0, 1], [0, 1], [2]], 3, [0, 0, 1], goal=3, cap=2)
+    cost, x = joint.repaired_cost(inst, np.ones(3), inst.site_of, np.zeros(3), np.ones(2))
+    assert cost == pytest.approx(2.0)
+    assert x == pytest.approx([1.0, 0.0, 1.0])
+
+
 def test_the_lp_settles_before_its_end_with_the_same_whole_sensors(monkeypatch):
     """Points 0-2, one site (cap 1), candidates seeing 1, 2 and both 0 and 1; goal 2
     on 1 mast: one sensor (the third candidate). With one column and one row a round

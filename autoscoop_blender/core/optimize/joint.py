@@ -105,8 +105,10 @@ log = logging.getLogger(__name__)
 # The most new columns, and new point rows, a round.
 PER_ROUND = 200
 ROWS_PER_ROUND = 500
-# The most candidates that a repair (``repaired_cost``) raises.
-REPAIR_STEPS = 50
+# The most raises of a repair (``repaired_cost``). On two_routes at k = 2 (the joint LP
+# at 16 masts) 50 found a solution from round 14 on, 500 and 5,000 from round 11
+# (62.85: the LP settles there); the LP's y leaves no more room to raise by then.
+REPAIR_STEPS = 1000
 
 
 @dataclass(frozen=True)
@@ -213,8 +215,8 @@ def repaired_cost(
     cost first, by candidates at sites with y > 0, each up to its site's y and
     within the site's cap times y. A point counts what the x' cover of it, at most
     its k and, with the site rows, at most ``reach`` (N,) (its site rows' sum of
-    y). (inf, x') when the goal is not met within ``REPAIR_STEPS`` candidates
-    raised. The cost is then an upper bound on S_LP(m) for every m that y's budget
+    y). (inf, x') when the goal is not met within ``REPAIR_STEPS`` raises.
+    The cost is then an upper bound on S_LP(m) for every m that y's budget
     fits."""
     cap = _cap(inst, site_of)
     x = np.minimum(x, y[site_of])
@@ -235,26 +237,35 @@ def repaired_cost(
     short = inst.goal - counted()
     pool = np.flatnonzero(y[site_of] > 1e-9)
     rows = sparse.csr_matrix(inst.matrix[pool], dtype=float)
+    by_point = sparse.csc_matrix(rows)
+    sites = site_of[pool]
+    # What a unit of each candidate adds while no point it raises reaches its limit,
+    # per cost: kept up to date as points reach their limits (one product over the
+    # pool at the start, not one a raise: on two_routes at k = 2 that took 3-8 s for
+    # 500 raises).
+    below = covers < limit
+    rate = np.asarray(rows @ np.where(below, 1.0 / k, 0.0), dtype=float) / cost[pool]
     for _ in range(REPAIR_STEPS):
         if short <= 0:
             return float(cost @ x), x
-        sites = site_of[pool]
         room = np.maximum(0.0, np.minimum(y[sites] - x[pool], cap * y[sites] - load[sites]))
-        # What a unit of each candidate adds while no point it raises reaches its limit.
-        wanted = np.where(covers < limit, 1.0 / k, 0.0)
-        rate = np.asarray(rows @ wanted, dtype=float) / cost[pool]
-        rate[room <= 1e-12] = 0.0
-        best = int(np.argmax(rate)) if len(rate) else -1
-        if best < 0 or rate[best] <= 1e-12:
+        usable = np.where(room > 1e-12, rate, 0.0)
+        best = int(np.argmax(usable)) if len(usable) else -1
+        if best < 0 or usable[best] <= 1e-12:
             break
         c = pool[best]
-        amount = min(room[best], short / (rate[best] * cost[c]) + 1e-9)
+        amount = min(room[best], short / (usable[best] * cost[c]) + 1e-9)
         before = counted()
         row = rows[best]
         covers[row.indices] += amount * row.data
         x[c] += amount
         load[site_of[c]] += amount
         short -= counted() - before
+        reached = row.indices[below[row.indices] & (covers[row.indices] >= limit[row.indices])]
+        if len(reached):
+            below[reached] = False
+            lost = by_point[:, reached] @ (1.0 / k[reached])
+            rate -= np.asarray(lost, dtype=float) / cost[pool]
     return (float(cost @ x), x) if short <= 0 else (math.inf, x)
 
 
