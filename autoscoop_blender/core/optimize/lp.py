@@ -117,8 +117,10 @@ MAX_MILP_CANDIDATES = 4000
 CUTOFF_EPS = 1e-6
 # A part's LP (``parts.py``) stops once its bound is within this fraction of its value
 # (0.5 % took two_routes' parts twice as long as the whole LP, which stops once its
-# integer bound is final).
-PART_REL_GAP = 0.02
+# integer bound is final). Started from a sample's LP (``bound.sample_columns``),
+# Town01's parts took 38-44 s at 1 % and 36-42 s at 2 %, and their lines proved 57.42
+# sensors together, against 56.99 (2026-12-07): at 2 % the whole bound was 1 lower.
+PART_REL_GAP = 0.01
 
 
 @dataclass(frozen=True)
@@ -478,7 +480,7 @@ def prove_bound(
         lp_gen = cover_lp(
             part.lp_inst, ones, cands.position, np.array(start, dtype=np.int64), integral=False,
             deadline=deadline, stop=stop, rel_gap=PART_REL_GAP, line_anyway=True,
-            also_at=part.other_goals,
+            also_at=part.other_goals, sample=True,
         )  # fmt: skip
     elif inst.xy is not None and n_parts > 1:
         split = parts_of(inst.xy, n_parts)
@@ -486,7 +488,9 @@ def prove_bound(
             inst, ones, cands.position, initial, split, deadline=deadline, stop=stop
         )
     else:
-        lp_gen = cover_lp(inst, ones, cands.position, initial, deadline=deadline, stop=stop)
+        lp_gen = cover_lp(
+            inst, ones, cands.position, initial, deadline=deadline, stop=stop, sample=True
+        )
     # The fewest masts' MILP takes long on large targets (674 s on three tiles of
     # full_ground, where the LP's 33.51 already proves its 34): there only its LP
     # unless the masts are the objective.

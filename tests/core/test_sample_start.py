@@ -1,0 +1,100 @@
+"""The sensors LP started from a sample's LP (``bound.sample_columns``): on random
+grounds of points on a 1 m lattice, seen by candidates that cover disks, the LP over
+every point reaches the LP that scipy's linprog solves with every candidate at once,
+and reports only its own rounds; the start is the sample LP's support (an optimum on
+the sample, checked by linprog on those columns alone), then more of its columns as
+the entries allow."""
+
+import numpy as np
+import pytest
+from scipy import sparse
+from scipy.optimize import linprog
+
+from autoscoop_blender.core.optimize import bound
+from autoscoop_blender.core.optimize.bound import LPProgress, cover_lp, sample_columns
+from autoscoop_blender.core.optimize.cover import CoverInstance
+from tests.core.test_bound import full_lp
+from tests.core.test_lp import drain, steps
+
+
+def disk_ground(rng, side=14, n_cand=40):
+    """(instance, costs): points on a side x side lattice, 1 m apart; each candidate
+    covers the points within 1.5-4 m of a random centre; the goal is 90 % of the points
+    some candidate covers."""
+    xy = np.stack(np.meshgrid(np.arange(side), np.arange(side)), -1).reshape(-1, 2).astype(float)
+    centres = rng.uniform(0, side, (n_cand, 2))
+    radii = rng.uniform(1.5, 4.0, n_cand)
+    dist = np.linalg.norm(xy[None, :, :] - centres[:, None, :], axis=2)
+    matrix = sparse.csr_matrix((dist <= radii[:, None]).astype(np.float32))
+    seen = int(np.count_nonzero(matrix.sum(axis=0)))
+    return CoverInstance(matrix, int(0.9 * seen), xy=xy), rng.uniform(0.5, 2.0, n_cand)
+
+
+@pytest.fixture
+def any_size(monkeypatch):
+    """The sample is taken on grounds of any size (these have 196 points)."""
+    monkeypatch.setattr(bound, "SAMPLE_MIN_POINTS", 0)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_sampled_start_reaches_the_full_lp_and_reports_its_own_rounds(seed, any_size):
+    rng = np.random.default_rng(4100 + seed)
+    inst, cost = disk_ground(rng)
+    group = np.arange(len(cost))
+    none = np.zeros(0, np.int64)
+    sol, yielded = steps(cover_lp(inst, cost, group, none, integral=False, sample=True))
+    reports = [r for r in yielded if isinstance(r, LPProgress)]
+    assert sol.complete and sol.value == pytest.approx(full_lp(inst, cost), rel=1e-6)
+    # The sample's rounds are not reported as the whole's: one report a round, counted
+    # from 1, every bound below the whole LP's value.
+    assert [r.rounds for r in reports] == list(range(1, sol.rounds + 1))
+    assert all(r.bound <= sol.value + 1e-9 for r in reports)
+    # The first round already holds the sample's columns (it starts from none).
+    start = drain(sample_columns(inst, cost, group, none))
+    assert len(start) > 0 and reports[0].columns == len(start)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_start_is_the_samples_support_then_more_as_the_entries_allow(seed, monkeypatch):
+    rng = np.random.default_rng(4200 + seed)
+    inst, cost = disk_ground(rng)
+    group = np.arange(len(cost))
+    none = np.zeros(0, np.int64)
+    sample = inst.thinned(bound.SAMPLE_M)
+    assert sample.n_points < inst.n_points
+    entries = np.diff(inst.matrix.indptr)
+    starts = {}
+    for budget in (0, 150, 400, 10**9):
+        monkeypatch.setattr(bound, "START_NONZEROS", budget)
+        starts[budget] = drain(sample_columns(inst, cost, group, none))
+    used = starts[0]
+    # With no entries to spare: the sample LP's support, an optimum of the sample within
+    # its stopping gap, by linprog over those columns alone.
+    assert len(used) < len(starts[10**9])  # not every column the sample LP took
+    alone = CoverInstance(sample.matrix[used], sample.goal)
+    assert full_lp(alone, cost[used]) <= full_lp(sample, cost) * (1 + bound.SAMPLE_REL_GAP) + 1e-9
+    for small, large in [(0, 150), (150, 400), (400, 10**9)]:
+        assert list(starts[large][: len(starts[small])]) == list(starts[small])  # a prefix
+    for budget in (150, 400):
+        assert entries[starts[budget]].sum() <= max(budget, entries[used].sum())
+        # the next column (if any) would have passed the budget
+        nxt = starts[10**9][len(starts[budget]) :]
+        if len(nxt) and len(starts[budget]) > len(used):
+            assert entries[starts[budget]].sum() + entries[nxt[0]] > budget
+    assert len(set(starts[10**9])) == len(starts[10**9])
+
+
+def test_no_sample_below_its_size_or_without_the_points_positions(monkeypatch):
+    """Below ``SAMPLE_MIN_POINTS``, or with no positions to thin by, the LP starts from
+    its own columns alone: its first round holds just those."""
+    rng = np.random.default_rng(4300)
+    inst, cost = disk_ground(rng)
+    group = np.arange(len(cost))
+    initial = np.array([0, 1], dtype=np.int64)
+    monkeypatch.setattr(bound, "SAMPLE_MIN_POINTS", inst.n_points + 1)
+    _, yielded = steps(cover_lp(inst, cost, group, initial, integral=False, sample=True))
+    assert next(r for r in yielded if isinstance(r, LPProgress)).columns == 2
+    monkeypatch.setattr(bound, "SAMPLE_MIN_POINTS", 0)
+    blind = CoverInstance(inst.matrix, inst.goal)
+    _, yielded = steps(cover_lp(blind, cost, group, initial, integral=False, sample=True))
+    assert next(r for r in yielded if isinstance(r, LPProgress)).columns == 2
