@@ -98,3 +98,41 @@ def test_no_sample_below_its_size_or_without_the_points_positions(monkeypatch):
     blind = CoverInstance(inst.matrix, inst.goal)
     _, yielded = steps(cover_lp(blind, cost, group, initial, integral=False, sample=True))
     assert next(r for r in yielded if isinstance(r, LPProgress)).columns == 2
+
+
+def _sample_lp_returns(monkeypatch, value, rounds=3):
+    """``cover_lp`` on the sample replaced: it returns columns 5, 2, 9 and 7 at x 0.5,
+    0, 0.25 and 0 (reduced costs 0, 0.3, 0, 0.1) after ``rounds`` rounds at ``value``
+    (inf: its last round cut short by the time limit)."""
+    reduced = np.full(12, 1.0)
+    reduced[[5, 2, 9, 7]] = [0.0, 0.3, 0.0, 0.1]
+
+    def fake(*args, **kwargs):
+        yield None
+        return bound.LPSolution(
+            value, 0.0, np.array([5, 2, 9, 7]), np.array([0.5, 0.0, 0.25, 0.0]),
+            np.zeros(12), reduced, rounds, False,
+        )  # fmt: skip
+
+    monkeypatch.setattr(bound, "cover_lp", fake)
+
+
+@pytest.mark.parametrize(
+    ("value", "rounds", "budget", "want"),
+    [
+        (3.0, 3, 0, [5, 9]),  # its support alone
+        (3.0, 3, 3, [5, 9, 7]),  # then the next by reduced cost, each column 1 entry
+        (3.0, 3, 10, [5, 9, 7, 2]),
+        (np.inf, 3, 0, []),  # cut short: no support, by reduced cost only
+        (np.inf, 3, 2, [5, 9]),
+        (np.inf, 3, 10, [5, 9, 7, 2]),
+        (3.0, 0, 10, []),  # no round ended: nothing
+    ],
+)
+def test_the_start_from_a_sample_lp_ended_or_cut_short(monkeypatch, value, rounds, budget, want):
+    _sample_lp_returns(monkeypatch, value, rounds)
+    monkeypatch.setattr(bound, "START_NONZEROS", budget)
+    matrix = sparse.csr_matrix(np.eye(12, 4, dtype=np.float32) + np.eye(12, 4, -4) + np.eye(12, 4, -8))
+    inst = CoverInstance(matrix, 3, xy=np.array([[0.0, 0.0], [5.0, 0.0], [0.0, 5.0], [5.0, 5.0]]))
+    got = drain(sample_columns(inst, np.ones(12), np.arange(12), np.zeros(0, np.int64)))
+    assert list(got) == want
