@@ -118,7 +118,7 @@ CUTOFF_EPS = 1e-6
 # A part's LP (``parts.py``) stops once its bound is within this fraction of its value
 # (0.5 % took two_routes' parts twice as long as the whole LP, which stops once its
 # integer bound is final). Started from a sample's LP (``bound.sample_columns``),
-# Town01's parts took 38-44 s at 1 % and 36-42 s at 2 %, and their lines proved 57.42
+# Town01's parts took 37-54 s at 1 % and 36-42 s at 2 %, and their lines proved 57.42
 # sensors together, against 56.99 (2026-12-07): at 2 % the whole bound was 1 lower.
 PART_REL_GAP = 0.01
 
