@@ -8,7 +8,6 @@ the entries allow."""
 import numpy as np
 import pytest
 from scipy import sparse
-from scipy.optimize import linprog
 
 from autoscoop_blender.core.optimize import bound
 from autoscoop_blender.core.optimize.bound import LPProgress, cover_lp, sample_columns
