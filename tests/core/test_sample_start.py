@@ -17,16 +17,17 @@ from tests.core.test_lp import drain, steps
 
 
 def disk_ground(rng, side=14, n_cand=40):
-    """(instance, costs): points on a side x side lattice, 1 m apart; each candidate
-    covers the points within 1.5-4 m of a random centre; the goal is 90 % of the points
-    some candidate covers."""
+    """(instance, costs, positions: each candidate its own): points on a side x side
+    lattice, 1 m apart; each candidate covers the points within 1.5-4 m of a random
+    centre; the goal is 90 % of the points some candidate covers."""
     xy = np.stack(np.meshgrid(np.arange(side), np.arange(side)), -1).reshape(-1, 2).astype(float)
     centres = rng.uniform(0, side, (n_cand, 2))
     radii = rng.uniform(1.5, 4.0, n_cand)
     dist = np.linalg.norm(xy[None, :, :] - centres[:, None, :], axis=2)
     matrix = sparse.csr_matrix((dist <= radii[:, None]).astype(np.float32))
     seen = int(np.count_nonzero(matrix.sum(axis=0)))
-    return CoverInstance(matrix, int(0.9 * seen), xy=xy), rng.uniform(0.5, 2.0, n_cand)
+    inst = CoverInstance(matrix, int(0.9 * seen), xy=xy)
+    return inst, rng.uniform(0.5, 2.0, n_cand), np.arange(n_cand)
 
 
 @pytest.fixture
@@ -37,9 +38,7 @@ def any_size(monkeypatch):
 
 @pytest.mark.parametrize("seed", range(6))
 def test_a_sampled_start_reaches_the_full_lp_and_reports_its_own_rounds(seed, any_size):
-    rng = np.random.default_rng(4100 + seed)
-    inst, cost = disk_ground(rng)
-    group = np.arange(len(cost))
+    inst, cost, group = disk_ground(np.random.default_rng(4100 + seed))
     none = np.zeros(0, np.int64)
     sol, yielded = steps(cover_lp(inst, cost, group, none, integral=False, sample=True))
     reports = [r for r in yielded if isinstance(r, LPProgress)]
@@ -55,9 +54,7 @@ def test_a_sampled_start_reaches_the_full_lp_and_reports_its_own_rounds(seed, an
 
 @pytest.mark.parametrize("seed", range(6))
 def test_the_start_is_the_samples_support_then_more_as_the_entries_allow(seed, monkeypatch):
-    rng = np.random.default_rng(4200 + seed)
-    inst, cost = disk_ground(rng)
-    group = np.arange(len(cost))
+    inst, cost, group = disk_ground(np.random.default_rng(4200 + seed))
     none = np.zeros(0, np.int64)
     sample = inst.thinned(bound.SAMPLE_M)
     assert sample.n_points < inst.n_points
@@ -86,9 +83,7 @@ def test_the_start_is_the_samples_support_then_more_as_the_entries_allow(seed, m
 def test_no_sample_below_its_size_or_without_the_points_positions(monkeypatch):
     """Below ``SAMPLE_MIN_POINTS``, or with no positions to thin by, the LP starts from
     its own columns alone: its first round holds just those."""
-    rng = np.random.default_rng(4300)
-    inst, cost = disk_ground(rng)
-    group = np.arange(len(cost))
+    inst, cost, group = disk_ground(np.random.default_rng(4300))
     initial = np.array([0, 1], dtype=np.int64)
     monkeypatch.setattr(bound, "SAMPLE_MIN_POINTS", inst.n_points + 1)
     _, yielded = steps(cover_lp(inst, cost, group, initial, integral=False, sample=True))
