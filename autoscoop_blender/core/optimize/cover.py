@@ -327,10 +327,8 @@ def swap_two_for_one(
     )
     # What holds for every pair, worked out once (the cover changes only on a swap,
     # which ends the call): at k > 1 the chosen candidates, which may not come in
-    # again (save the two that leave: ``at_pool``, where they stand in the pool), and
-    # the sites with no room.
+    # again (save the two that leave), and the sites full or with no room.
     taken = np.isin(pool, chosen) if inst.multi else None
-    at_pool = {int(c): i for i, c in enumerate(pool) if c in alone}
     unit = by_point.data.max(initial=0) <= 1  # a gain then counts points, at most ``back``
     pool_cost = cost_at(sensor_cost, pool) if np.ndim(sensor_cost) > 0 else None
     site_of = inst.site_of if inst.cap is not None else None
@@ -355,9 +353,7 @@ def swap_two_for_one(
             continue
         gains = _row_sums(by_point, back)
         if taken is not None:
-            shut = taken.copy()
-            shut[[at_pool[c] for c in (a, b) if c in at_pool]] = False
-            gains[shut] = -1.0
+            gains[taken & (pool != a) & (pool != b)] = -1.0
         if pool_cost is not None:
             gains[pool_cost >= cost_at(sensor_cost, np.array([a, b])).sum()] = -1.0
         if site_of is not None:
