@@ -47,6 +47,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--quick", action="store_true", help="all, scaling, bound, constants: quicker"
     )
     bench.add_argument("--scene", default=str(SAMPLES / "two_routes.blend"))
+    bench.add_argument(
+        "--scenes",
+        help="bound: measure only these of its scenes, separated by ';' (e.g. 'Town01; "
+        "two_routes, coverage_k = 2'), keeping the others' figures",
+    )
     bench.add_argument("--poses", type=int, default=12, help="coverage: poses per method")
     bench.add_argument("--seed", type=int, default=0)
     bench.add_argument("--out", help="coverage: also write the figures to this JSON file")

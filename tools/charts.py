@@ -111,18 +111,32 @@ def optimize_chart(results: dict[str, Any], path: Path) -> None:
     plt.close(fig)
 
 
+# The bound chart's panels a row, at most.
+BOUND_COLUMNS = 4
+# Each optimizer's colour in every panel of the bound chart (the others': the next).
+BOUND_COLOURS = {"es": "C0", "greedy": "C1", "lp": "C2"}
+
+
 def bound_chart(results: dict[str, Any], path: Path) -> None:
-    """Objective against wall seconds per optimizer, one panel per scene: each run's
+    """Objective against wall seconds per optimizer, one panel per scene (at most
+    ``BOUND_COLUMNS`` a row), each titled with the day it was measured: each run's
     plan as a point; for lp, its best plan and its proven lower bound as they rise
     and fall during the run, and the final bound as a line."""
-    scenes = results.get("bound", {}).get("scenes", {})
+    section = results.get("bound", {})
+    scenes = section.get("scenes", {})
     if not scenes:
         return
-    fig, axes = plt.subplots(1, len(scenes), figsize=(6 * len(scenes), 4.8), squeeze=False)
-    for ax, (scene, rows) in zip(axes[0], scenes.items()):
+    measured = section.get("measured", {})
+    cols = min(BOUND_COLUMNS, len(scenes))
+    n_rows = -(-len(scenes) // cols)
+    fig, axes = plt.subplots(n_rows, cols, figsize=(5.2 * cols, 4.4 * n_rows), squeeze=False)
+    for ax in axes.ravel()[len(scenes) :]:
+        ax.set_visible(False)
+    for ax, (scene, rows) in zip(axes.ravel(), scenes.items()):
         cost_rows = [r for r in rows if r["objective_kind"] == "cost"]
         for i, r in enumerate(cost_rows):
-            ax.scatter([r["wall_s"]], [r["cost"]], color=f"C{i}", s=40, zorder=3,
+            colour = BOUND_COLOURS.get(r["config"], f"C{len(BOUND_COLOURS) + i}")
+            ax.scatter([r["wall_s"]], [r["cost"]], color=colour, s=40, zorder=3,
                        label=f"{r['config']}: {r['sensors']} sensors, {r['masts']} masts")  # fmt: skip
             ax.annotate(f"{r['cost']:g}", (r["wall_s"], r["cost"]), textcoords="offset points",
                         xytext=(5, 3), fontsize=8)  # fmt: skip
@@ -131,12 +145,13 @@ def bound_chart(results: dict[str, Any], path: Path) -> None:
             if plans:
                 t = [p[0] for p in plans] + [r["wall_s"]]
                 best = [p[1] for p in plans] + [r["cost"]]
-                ax.step(t, best, where="post", color=f"C{i}", lw=1, alpha=0.7)
+                ax.step(t, best, where="post", color=colour, lw=1, alpha=0.7)
             proven = [(p[0], p[2]) for p in trace if p[2]]  # a bound of 0 proves nothing
             if proven:
                 ax.step([p[0] for p in proven] + [r["wall_s"]],
                         [p[1] for p in proven] + [r["lower_bound"]], where="post",
-                        color=f"C{i}", lw=1, ls=":", label=f"{r['config']}: bound so far")  # fmt: skip
+                        color=colour, lw=1, ls=":",
+                        label=f"{r['config']}: bound so far")  # fmt: skip
         bounds = [r["lower_bound"] for r in cost_rows if r["lower_bound"] is not None]
         if bounds:
             best_bound = max(bounds)
@@ -145,12 +160,12 @@ def bound_chart(results: dict[str, Any], path: Path) -> None:
         ax.set_xscale("log")
         ax.set_xlabel("wall seconds (log)")
         ax.set_ylabel("cost = 3 x masts + sensors")
-        ax.set_title(scene, fontsize=10)
+        when = measured.get(scene, {}).get("date") or section.get("date")
+        ax.set_title(f"{scene} ({when})", fontsize=10)
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
-    when = results["bound"].get("date", results.get("date"))
-    fig.suptitle(f"Objective against time, with the bound ({when}, "
-                 f"{results.get('machine')})", fontsize=9)  # fmt: skip
+    fig.suptitle("Objective against time, with the proven bound (each panel: the day it "
+                 "was measured)", fontsize=10)  # fmt: skip
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=100)
     plt.close(fig)

@@ -30,6 +30,7 @@ import math
 import multiprocessing
 import os
 import resource
+import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
@@ -125,13 +126,20 @@ def run(args: argparse.Namespace) -> int:
 
 def run_bound(args: argparse.Namespace) -> int:
     """Only the bound section (objective against time, with the lower bound), written
-    into the existing ``results.json``, and its chart."""
+    into the existing ``results.json``, and its chart; with ``--scenes``, only those
+    scenes, the others' figures kept."""
     plan = QUICK if args.quick else FULL
     out = Path(args.out_dir) / ("quick" if args.quick else "")
     out.mkdir(parents=True, exist_ok=True)
     path = out / "results.json"
     results = json.loads(path.read_text()) if path.is_file() else {}
-    results["bound"] = bound_section(plan)
+    only = tuple(n.strip() for n in (args.scenes or "").split(";") if n.strip())
+    unknown = sorted(set(only) - set(bound_scenes(plan)))
+    if unknown:
+        print(f"error: bench bound --scenes: no scene {unknown[0]!r}; the scenes: "
+              + "; ".join(bound_scenes(plan)), file=sys.stderr)  # fmt: skip
+        return 2
+    results["bound"] = bound_section(plan, only, results.get("bound"))
     results.setdefault("date", date.today().isoformat())
     results.setdefault("machine", machine_line())
     path.write_text(json_text(results))
@@ -567,31 +575,91 @@ BOUND_RUNS = {
 }
 
 
-def bound_section(plan: Plan) -> dict[str, Any]:
-    """The objective (cost = 3 x masts + sensors unless named) of ES, greedy and lp
-    against wall seconds, with lp's proven lower bound, on two_routes and on the first
-    ``plan.bound_tiles`` tiles of full_ground. Each run in a fresh process, one at a
-    time."""
-    out: dict[str, Any] = {"date": date.today().isoformat(), "scenes": {}}
-    for scene, tiles, names in (
-        ("two_routes", (), tuple(BOUND_RUNS)),
-        (
-            f"full_ground, {plan.bound_tiles} tiles",
-            tuple(range(1, plan.bound_tiles + 1)),
-            ("es", "greedy", "lp"),
+@dataclass(frozen=True)
+class BoundScene:
+    """A scene of the bound chart: ``source``, a sample .blend's name or an OpenDRIVE
+    file of ``tests/data/xodr`` (``.xodr``, imported at the defaults first); the runs
+    of ``BOUND_RUNS`` made on it; full_ground's ``tiles`` (none: the whole scene); the
+    coverage every target point needs (``coverage_k``)."""
+
+    source: str
+    runs: tuple[str, ...]
+    tiles: tuple[int, ...] = ()
+    coverage_k: int = 1
+
+
+def bound_scenes(plan: Plan) -> dict[str, BoundScene]:
+    """The bound chart's scenes by name: the two samples and, in the full plan, the
+    samples at ``coverage_k = 2`` and each OpenDRIVE file that ``bench xodr`` plans
+    (Town04 about half an hour for lp at its default time limit)."""
+    from tools.xodr_bench import FILES
+
+    tiles = tuple(range(1, plan.bound_tiles + 1))
+    scenes = {
+        "two_routes": BoundScene("two_routes", tuple(BOUND_RUNS)),
+        f"full_ground, {plan.bound_tiles} tiles": BoundScene(
+            "full_ground", ("es", "greedy", "lp"), tiles
         ),
-    ):
-        rows = []
-        for name in names:
-            row = _in_fresh_process(_bound_point, scene.split(",")[0], tiles, name)
-            rows.append(row)
-            print(
-                f"  bound {scene}, {name}: {row['sensors']} sensors on {row['masts']} masts, "
-                f"objective {row['objective']:g} >= {row['lower_bound']}, gap {row['gap']}, "
-                f"{row['wall_s']:.1f} s"
-            )
-        out["scenes"][scene] = rows
-    return out
+    }
+    if plan is QUICK:
+        return scenes
+    scenes["two_routes, coverage_k = 2"] = BoundScene("two_routes", ("greedy", "lp"), (), 2)
+    for name in FILES:
+        scenes[name] = BoundScene(f"{name}.xodr", ("greedy", "lp"))
+    return scenes
+
+
+def bound_section(
+    plan: Plan, only: tuple[str, ...] = (), before: dict[str, Any] | None = None
+) -> dict[str, Any]:
+    """The objective (cost = 3 x masts + sensors unless named) of each scene's runs
+    against wall seconds, with lp's proven lower bound (``bound_scenes``). Each run in
+    a fresh process, one at a time. only: measure just these scenes, keeping the
+    others' rows, dates and machines from ``before`` (an earlier bound section): on
+    a shared machine a scene can be measured again alone."""
+    import tempfile
+
+    from tools.xodr_bench import XODR, imported_blend
+
+    fresh: dict[str, list[dict[str, Any]]] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for scene, how in bound_scenes(plan).items():
+            if only and scene not in only:
+                continue
+            if how.source.endswith(".xodr"):
+                blend = imported_blend(XODR / how.source, Path(tmp))
+            else:
+                blend = SAMPLES / f"{how.source}.blend"
+            rows = fresh[scene] = []
+            for name in how.runs:
+                row = _in_fresh_process(_bound_point, str(blend), how.tiles, name, how.coverage_k)
+                rows.append(row)
+                print(
+                    f"  bound {scene}, {name}: {row['sensors']} sensors on {row['masts']} "
+                    f"masts, objective {row['objective']:g} >= {row['lower_bound']}, gap "
+                    f"{row['gap']}, {row['wall_s']:.1f} s, {row['peak_rss_mb']:.0f} MB",
+                    flush=True,
+                )
+    return merged_bound(before if only else None, fresh, date.today().isoformat(), machine_line())
+
+
+def merged_bound(
+    before: dict[str, Any] | None, fresh: dict[str, Any], today: str, machine: str
+) -> dict[str, Any]:
+    """A bound section: ``before``'s scenes (None: none), each with the date and
+    machine it was measured on (those of ``before`` as a whole where it kept none),
+    then ``fresh``'s rows by scene, measured ``today`` on ``machine``, in place of
+    any before."""
+    before = before or {}
+    scenes = dict(before.get("scenes", {}))
+    measured = {
+        name: before.get("measured", {}).get(name, {"date": before.get("date"), "machine": None})
+        for name in scenes
+    }
+    for name, rows in fresh.items():
+        scenes[name] = rows
+        measured[name] = {"date": today, "machine": machine}
+    return {"date": today, "measured": measured, "scenes": scenes}
 
 
 def _in_fresh_process(fn, *args):
@@ -614,14 +682,14 @@ def only_tiles(scene: Any, tiles: tuple[int, ...]) -> Any:
     )
 
 
-def _bound_point(scene_name: str, tiles: tuple[int, ...], name: str) -> dict[str, Any]:
+def _bound_point(blend: str, tiles: tuple[int, ...], name: str, coverage_k: int) -> dict[str, Any]:
     from autoscoop_blender.scene.factory import BVHFactory, forget_blender_script_paths
 
     forget_blender_script_paths()  # a spawned child: the pip bpy must win
-    scene, _ = load_scene(str(SAMPLES / f"{scene_name}.blend"))
+    scene, _ = load_scene(blend)
     scene = only_tiles(scene, tiles)
     scene = scene.cropped(MODEL.range_m)
-    settings = BOUND_RUNS[name]
+    settings = replace(BOUND_RUNS[name], coverage_k=coverage_k)
     run = Run(scene, BVHFactory.of(scene), MODEL, settings)
     # lp's best plan and its proven bound as they change: [s, best, bound] (best None
     # while a ground in parts has no whole plan yet, bound None before the first)

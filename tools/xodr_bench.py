@@ -67,6 +67,13 @@ def _headless(*args: Any) -> subprocess.CompletedProcess[str]:
     )  # fmt: skip
 
 
+def imported_blend(path: Path, tmp: Path) -> Path:
+    """``headless import-xodr`` of ``path`` at the defaults into ``tmp``: the .blend."""
+    blend = tmp / f"{path.stem}.blend"
+    _headless("import-xodr", path, "--out", blend)
+    return blend
+
+
 def _optimize(blend: Path, optimizer: str, out: Path) -> tuple[float, int]:
     """``headless optimize`` of ``blend`` with ``optimizer``: its wall seconds and its
     process's own peak resident memory, bytes (``os.wait4``: the child's rusage)."""
@@ -92,9 +99,8 @@ def _file_row(name: str, tmp: Path) -> dict[str, Any]:
     geometry_s = time.perf_counter() - t0
     union = shapely.union_all([area_from_rings(a.name, a.rings) for a in imported.targets])
     bands = shapely.union_all([area_from_rings(a.name, a.rings) for a in imported.sensor_areas])
-    blend = tmp / f"{name}.blend"
     t0 = time.perf_counter()
-    _headless("import-xodr", path, "--out", blend)
+    blend = imported_blend(path, tmp)
     command_s = time.perf_counter() - t0
     row: dict[str, Any] = {
         "file": path.name,
