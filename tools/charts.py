@@ -9,6 +9,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.ticker import FuncFormatter, NullFormatter  # noqa: E402
 
 SERIES_STYLE = {
     "targeted": ("tab:blue", "o"),
@@ -158,6 +159,11 @@ def bound_chart(results: dict[str, Any], path: Path) -> None:
             ax.axhline(best_bound, color="k", ls="--", lw=1,
                        label=f"proven lower bound {best_bound:g}")  # fmt: skip
         ax.set_xscale("log")
+        # Seconds as plain numbers at the powers of ten, from 1 s at most (a run of a
+        # few seconds gets no power of ten of its own to label otherwise).
+        ax.set_xlim(left=min(1.0, ax.get_xlim()[0]))
+        ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+        ax.xaxis.set_minor_formatter(NullFormatter())
         ax.set_xlabel("wall seconds (log)")
         ax.set_ylabel("cost = 3 x masts + sensors")
         when = measured.get(scene, {}).get("date") or section.get("date")

@@ -31,6 +31,7 @@ import multiprocessing
 import os
 import resource
 import sys
+import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
@@ -617,8 +618,6 @@ def bound_section(
     a fresh process, one at a time. only: measure just these scenes, keeping the
     others' rows, dates and machines from ``before`` (an earlier bound section): on
     a shared machine a scene can be measured again alone."""
-    import tempfile
-
     from tools.xodr_bench import XODR, imported_blend
 
     fresh: dict[str, list[dict[str, Any]]] = {}
@@ -647,7 +646,7 @@ def merged_bound(
     before: dict[str, Any] | None, fresh: dict[str, Any], today: str, machine: str
 ) -> dict[str, Any]:
     """A bound section: ``before``'s scenes (None: none), each with the date and
-    machine it was measured on (those of ``before`` as a whole where it kept none),
+    machine it was measured on (where it kept none, ``before``'s date and no machine),
     then ``fresh``'s rows by scene, measured ``today`` on ``machine``, in place of
     any before."""
     before = before or {}
