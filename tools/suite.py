@@ -135,10 +135,11 @@ def run_bound(args: argparse.Namespace) -> int:
     path = out / "results.json"
     results = json.loads(path.read_text()) if path.is_file() else {}
     only = tuple(n.strip() for n in (args.scenes or "").split(";") if n.strip())
-    unknown = sorted(set(only) - set(bound_scenes(plan)))
+    scenes = bound_scenes(plan)
+    unknown = sorted(set(only) - set(scenes))
     if unknown:
         print(f"error: bench bound --scenes: no scene {unknown[0]!r}; the scenes: "
-              + "; ".join(bound_scenes(plan)), file=sys.stderr)  # fmt: skip
+              + "; ".join(scenes), file=sys.stderr)  # fmt: skip
         return 2
     results["bound"] = bound_section(plan, only, results.get("bound"))
     results.setdefault("date", date.today().isoformat())
