@@ -55,6 +55,10 @@ class Run:
         for line in self.proc.stderr:
             self.lines.append(line)
 
+    def printed(self, start: str) -> bool:
+        """Whether a line of its stderr so far starts with ``start``."""
+        return any(line.startswith(start) for line in self.lines)
+
     def wait_for(self, condition, seconds: float = 180) -> None:
         end = time.monotonic() + seconds
         while not condition():
@@ -126,15 +130,13 @@ def es_config(tmp_path) -> Path:
     return cfg
 
 
-def first_line(run: Run) -> bool:
-    """Whether the run has printed its first line: the estimate, once the scene has
-    loaded and before the search begins."""
-    return any(line.startswith("estimate:") for line in run.lines)
+# A run's first line: the estimate, once the scene has loaded and before the search.
+FIRST_LINE = "estimate:"
 
 
 @pytest.fixture(scope="module")
 def start_up_s(tmp_path_factory) -> float:
-    """Seconds from the command's start to its first line (``first_line``) on this
+    """Seconds from the command's start to its first line (``FIRST_LINE``) on this
     machine now, from a run of its own to the end. The moments of
     ``test_in_the_first_seconds`` are shares of it: fixed seconds were not (on
     2026-12-07 a machine twice as fast had ended the whole run by 2.4 s)."""
@@ -142,7 +144,7 @@ def start_up_s(tmp_path_factory) -> float:
     cfg = folder / "es.toml"
     cfg.write_text(ES)
     run = Run("optimize", FLAT, "--config", cfg, "--workers", "2", "--out-dir", folder / "out")
-    run.wait_for(lambda: first_line(run))
+    run.wait_for(lambda: run.printed(FIRST_LINE))
     took = time.monotonic() - run.start
     assert run.proc.wait(timeout=180) == 0, "".join(run.lines)
     return took
@@ -157,7 +159,7 @@ def test_in_the_first_seconds(tmp_path, es_config, start_up_s, share, how):
     out = tmp_path / "out"
     run = Run("optimize", FLAT, "--config", es_config, "--workers", "2", "--out-dir", out)
     if share == "first line":
-        run.wait_for(lambda: first_line(run))
+        run.wait_for(lambda: run.printed(FIRST_LINE))
     else:
         time.sleep(share * start_up_s)
     code, stderr = run.interrupt(how)
@@ -214,14 +216,14 @@ def test_while_the_results_are_written(tmp_path, es_config, how):
     """Between the search's end and the last rename: all result files or none."""
     out = tmp_path / "out"
     run = Run("optimize", FLAT, "--config", es_config, "--out-dir", out)
-    run.wait_for(lambda: any(line.startswith("done") for line in run.lines))
+    run.wait_for(lambda: run.printed("done"))
     code, _ = run.interrupt(how)
     written = {p.name for p in out.iterdir()} & {"result.json", "sensors.csv", "result.blend"}
     assert written == (set() if code == 130 else {"result.json", "sensors.csv", "result.blend"})
     no_scratch(out)
 
 
-@pytest.mark.parametrize("line", ["estimate:", "search: candidates"])
+@pytest.mark.parametrize("line", [FIRST_LINE, "search: candidates"])
 def test_lp_says_it_kept_nothing(tmp_path, line):
     """The lp optimizer fixes its sensors once its plan is done: interrupted as it
     prints its estimate or while it builds its candidates (its first progress line),
@@ -231,7 +233,7 @@ def test_lp_says_it_kept_nothing(tmp_path, line):
     after the later of the two moments this test had."""
     out = tmp_path / "out"
     run = Run("optimize", TWO, "--out-dir", out)
-    run.wait_for(lambda: any(seen.startswith(line) for seen in run.lines))
+    run.wait_for(lambda: run.printed(line))
     code, stderr = run.interrupt("SIGINT")
     assert code == 130
     assert last_line(stderr) == (
