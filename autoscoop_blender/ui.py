@@ -176,6 +176,7 @@ class AUTOSCOOP_PT_results(_Panel, bpy.types.Panel):
             # Where the gap lies: each count's own bound (the new masts and sensors).
             ("Fewest masts", "masts_lower_bound", "≥ {}"),
             ("Fewest sensors", "sensors_lower_bound", "≥ {}"),
+            ("Sensors on its masts", "sensors_on_masts_lower_bound", "≥ {}"),
             ("Time", "wall_s", "{:.1f} s"),
         ):
             value = m.get(key)

@@ -322,7 +322,9 @@ def gap_line(result: Result) -> str | None:
     the new ones). None when the plan is proven optimal or nothing was proven. It tells
     a planner how many masts a better plan could save at most: "no plan on the
     candidate set has fewer than 26 masts or fewer than 58 sensors; this one has 29
-    and 73"."""
+    and 73". With the fewest sensors on the plan's own masts proven
+    (``sensors_on_masts_lower_bound``) it says whether a cheaper plan could keep
+    them: "...; none on its masts has fewer: a cheaper plan needs other masts"."""
     m = result.metrics
     if not m.get("gap"):
         return None
@@ -335,10 +337,16 @@ def gap_line(result: Result) -> str | None:
             have.append(str(m[f"{what}s"] - m.get(f"existing_{what}s", 0)))
     if not fewest:
         return None
-    return (
+    text = (
         f"no plan on the candidate set has {' or '.join(fewest)}; "
         f"this one has {' and '.join(have)}"
     )
+    on_masts = m.get("sensors_on_masts_lower_bound")
+    if on_masts is None:
+        return text
+    if on_masts >= m["sensors"] - m.get("existing_sensors", 0):
+        return f"{text}; none on its masts has fewer: a cheaper plan needs other masts"
+    return f"{text}; on its masts a plan needs at least {_count(on_masts, new + 'sensor')}"
 
 
 def _count(n: int, what: str) -> str:

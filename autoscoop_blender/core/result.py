@@ -453,7 +453,10 @@ def objective_metrics(
     settings' objective (cost, sensors or masts); lower_bound: no plan in
     ``bound_scope`` has a lower objective; gap = (objective - lower_bound) / objective;
     sensors_lower_bound, masts_lower_bound: the bounds on each part; joint_lower_bound:
-    on the cost from masts and sensors together (``joint.py``; None: not proven); lp_bound: the LP
+    on the cost from masts and sensors together (``joint.py``; None: not proven);
+    sensors_on_masts_lower_bound: no plan whose new sensors stand on this plan's masts
+    (or those that stood already) has fewer new sensors (None: not proven); lp_bound:
+    the LP
     relaxation's bound on the sensors, before rounding up (with models of different
     costs: on what the sensors cost).
     """
@@ -469,6 +472,7 @@ def objective_metrics(
         "sensors_lower_bound": None,
         "masts_lower_bound": None,
         "joint_lower_bound": None,
+        "sensors_on_masts_lower_bound": None,
         "lp_bound": None,
         "lp_rounds": None,
         "bound_scope": None,
@@ -481,6 +485,7 @@ def objective_metrics(
             sensors_lower_bound=bound.sensors,
             masts_lower_bound=bound.masts,
             joint_lower_bound=round(bound.joint, 4) if bound.joint > 0 else None,
+            sensors_on_masts_lower_bound=bound.on_masts,
             lp_bound=round(bound.lp, 4),
             lp_rounds=bound.rounds,
             bound_scope=bound.scope,

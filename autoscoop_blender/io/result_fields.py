@@ -102,6 +102,13 @@ METRICS: Fields = {
     "gap": ("number", "(objective - lower_bound) / objective; 0 means proven optimal"),
     "sensors_lower_bound": ("integer", "no plan has fewer sensors"),
     "masts_lower_bound": ("integer", "no plan has fewer masts"),
+    "sensors_on_masts_lower_bound": (
+        "integer",
+        "no plan whose new sensors stand on this plan's masts (or on masts that stood "
+        "already) has fewer new sensors: when it equals the plan's, a cheaper plan needs "
+        "other masts; null when not proven (a plan proven optimal, a run stopped or out "
+        "of time first, a ground in parts re-planned by windows)",
+    ),
     "joint_lower_bound": (
         "number",
         "cost: no plan costs less, from masts and sensors together (the fewest sensors "

@@ -52,10 +52,18 @@ def test_default_run_reaches_the_goal(default_run):
     # Where its gap lies: each count's own bound, never above the plan's count.
     assert m["gap"] > 0 and m["masts_lower_bound"] <= m["masts"]
     assert 0 < m["sensors_lower_bound"] <= m["sensors"]
-    assert (
+    line = (
         f"no plan on the candidate set has fewer than {m['masts_lower_bound']} masts or fewer "
         f"than {m['sensors_lower_bound']} sensors; this one has {m['masts']} and {m['sensors']}"
-    ) in stdout.splitlines()
+    )
+    # On its own masts: at least the fewest sensors anywhere, at most the plan's.
+    on_masts = m["sensors_on_masts_lower_bound"]
+    assert m["sensors_lower_bound"] <= on_masts <= m["sensors"]
+    if on_masts == m["sensors"]:
+        line += "; none on its masts has fewer: a cheaper plan needs other masts"
+    else:
+        line += f"; on its masts a plan needs at least {on_masts} sensors"
+    assert line in stdout.splitlines()
 
 
 def test_recomputed_coverage_agrees(default_run, tmp_path):

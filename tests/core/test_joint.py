@@ -3,6 +3,7 @@ worked out by hand, a brute-force optimum, and the LP solved whole by other code
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 import threading
@@ -443,3 +444,98 @@ def test_an_lp_stopped_before_its_first_solve_proves_nothing():
     lp = steps(go)[0]
     assert (lp.masts, lp.rounds, lp.complete, lp.value) == (1, 0, False, math.inf)
     assert lp.sensors.tolist() == [0.0, 0.0, 0.0, 0.0]
+
+
+def _on_masts(inst, sites, **kwargs):
+    return steps(joint.sensors_on_masts(inst, inst.site_of, np.asarray(sites), **kwargs))[0]
+
+
+def test_the_sensors_on_given_masts_by_hand():
+    """On the cap instance: site 0 alone cannot reach the goal (5 one-point
+    candidates, room for 4); sites 1 and 2 need their 2; sites 0 and 1 need site 1's
+    candidate for points 0-2 and two of site 0's for points 3 and 4: 3."""
+    inst = _cap_instance()
+    assert _on_masts(inst, [0]) == math.inf
+    assert _on_masts(inst, [1, 2]) == pytest.approx(2.0, abs=1e-5)
+    assert _on_masts(inst, [0, 1]) == pytest.approx(3.0, abs=1e-5)
+    assert _on_masts(inst, [0, 1, 2]) == pytest.approx(2.0, abs=1e-5)
+
+
+def test_the_sensors_on_given_masts_count_halves_and_the_room_left():
+    """Three candidates at one site covering two of three points each ({0, 1}, {1, 2},
+    {0, 2}): the LP takes each at 1/2, 1.5 sensors (two in any plan). With two sensors
+    standing at the site already and a cap of 3, one more fits: x sums to at most 1,
+    short of 1.5, so no plan on that site reaches the goal. A goal of 2 points: 1."""
+    rows = [[0, 1], [1, 2], [0, 2]]
+    inst = _instance(rows, 3, [0, 0, 0], goal=3, cap=3)
+    assert _on_masts(inst, [0]) == pytest.approx(1.5, abs=1e-5)
+    held = dataclasses.replace(inst, held=np.array([2]))
+    assert _on_masts(held, [0]) == math.inf
+    assert _on_masts(dataclasses.replace(inst, goal=2), [0]) == pytest.approx(1.0, abs=1e-5)
+
+
+def test_the_sensors_on_given_masts_stopped_or_late_prove_nothing():
+    stopped = threading.Event()
+    stopped.set()
+    assert _on_masts(_cap_instance(), [1, 2], stop=stopped) == 0.0
+    assert _on_masts(_cap_instance(), [1, 2], deadline=time.perf_counter() - 1.0) == 0.0
+    assert _on_masts(_cap_instance(), [1, 2], deadline=time.perf_counter() + 60.0) > 1.99
+
+
+def _brute_force_on(inst, sites):
+    """The fewest candidates at ``sites`` that cover at least ``goal`` points to their
+    k, at most ``cap`` less what stands at a site (inf: none reach it)."""
+    m = inst.matrix.toarray() > 0
+    held = np.zeros(int(inst.site_of.max()) + 1, int) if inst.held is None else inst.held
+    pool = [c for c in range(len(m)) if inst.site_of[c] in sites]
+    for size in range(len(pool) + 1):
+        for chosen in itertools.combinations(pool, size):
+            chosen = list(chosen)
+            per = np.bincount(inst.site_of[chosen], minlength=len(held))
+            if np.any(per > inst.cap - held):
+                continue
+            if np.count_nonzero(m[chosen].sum(axis=0) >= inst.k) >= inst.goal:
+                return size
+    return math.inf
+
+
+def _direct_lp_on(inst, sites):
+    """The LP of plans on ``sites`` by scipy's linprog over every row at once
+    (variables: x of the candidates there, u (N))."""
+    a = inst.matrix.toarray().astype(float)
+    pool = np.flatnonzero(np.isin(inst.site_of, sites))
+    n_x, n_points = len(pool), a.shape[1]
+    held = np.zeros(int(inst.site_of.max()) + 1, int) if inst.held is None else inst.held
+    rows, rhs = [], []
+    for n in range(n_points):  # k_n u_n - sum_c a_nc x_c <= 0
+        rows.append(np.concatenate([-a[pool, n], np.eye(n_points)[n] * inst.k[n]]))
+        rhs.append(0.0)
+    rows.append(np.concatenate([np.zeros(n_x), -np.ones(n_points)]))
+    rhs.append(-float(inst.goal))
+    for s in sites:  # sum_{c at s} x_c <= cap - held_s
+        rows.append(np.concatenate([inst.site_of[pool] == s, np.zeros(n_points)]))
+        rhs.append(float(inst.cap - held[s]))
+    cost = np.concatenate([np.ones(n_x), np.zeros(n_points)])
+    res = optimize.linprog(cost, np.array(rows), np.array(rhs), bounds=(0, 1), method="highs")
+    return res.fun if res.status == 0 else math.inf
+
+
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(instances(), st.data())
+def test_the_sensors_on_given_masts_are_their_lp_and_below_any_plan_there(case, data):
+    """On random instances (a cap, k = 1 or 2, sensors standing at some sites): the
+    bound on a random set of sites is linprog's LP over the same plans, and never above
+    the fewest sensors of a plan on them found by trying every set."""
+    inst, standing, _ = case
+    n_sites = len(standing)
+    held = np.array(data.draw(st.lists(st.integers(0, 1), min_size=n_sites, max_size=n_sites)))
+    inst = dataclasses.replace(inst, held=np.minimum(held, inst.cap))
+    sites = data.draw(st.lists(st.integers(0, n_sites - 1), min_size=1, unique=True))
+    bound = _on_masts(inst, sorted(sites))
+    direct = _direct_lp_on(inst, sorted(sites))
+    if math.isinf(direct):
+        assert bound == math.inf
+    else:
+        assert bound == pytest.approx(direct, abs=1e-5)
+        assert bound <= direct + 1e-9
+    assert bound <= _brute_force_on(inst, sites) + 1e-9

@@ -705,9 +705,14 @@ def test_rejoin_moves_a_sensor_to_the_other_mast_and_closes_one():
     for c in (a, b):
         fix_candidate(problem, solution, cands, c)
     assert solution.n_covered >= goal
-    before, after = drain(parts_module.rejoin(problem, solution, None, None))
+    before, after, on_masts = drain(parts_module.rejoin(problem, solution, None, None))
     assert (before, after) == (8.0, 5.0)
     assert len(solution.sensors) == 2
+    # The fewest sensors on the two masts: at most the 2 planned; at least the goal
+    # over what the best of their candidates covers (no sensor covers more).
+    at_masts = np.isin(cands.position, cands.position[[a, b]])
+    most = int(np.diff(cands.matrix.indptr)[at_masts].max())
+    assert goal / most - 1e-5 <= on_masts <= 2.0 + 1e-6 and goal > most
     assert len({(f.pose.x, f.pose.y) for f in solution.sensors}) == 1
     caster = box_caster(WALL)()
     ev = TargetedEvaluator(problem.grid, caster)
@@ -756,8 +761,8 @@ def test_rejoin_by_windows_keeps_the_sensors_outside_each(monkeypatch):
     problem, cands, solution = _three_masts()
     at_r = solution.sensors[2].pose
     monkeypatch.setattr(parts_module, "REJOIN_MASTS", 2)
-    before, after = drain(parts_module.rejoin_windows(problem, solution, None, None))
-    assert (before, after) == (12.0, 9.0)
+    before, after, on_masts = drain(parts_module.rejoin_windows(problem, solution, None, None))
+    assert (before, after, on_masts) == (12.0, 9.0, 0.0)  # by windows: no bound on its masts
     assert at_r in [f.pose for f in solution.sensors] and len(solution.sensors) == 3
     assert len({(f.pose.x, f.pose.y) for f in solution.sensors}) == 2
     ev = TargetedEvaluator(problem.grid, box_caster(WALL)())
@@ -778,7 +783,7 @@ def test_rejoin_keeps_the_plan_when_the_fresh_count_falls_short(monkeypatch):
     poses = [f.pose for f in solution.sensors]
     reached = problem.reached
     monkeypatch.setattr(problem, "reached", lambda n: n >= goal + 1)
-    assert drain(parts_module.rejoin(problem, solution, None, None)) == (8.0, 8.0)
+    assert drain(parts_module.rejoin(problem, solution, None, None))[:2] == (8.0, 8.0)
     assert [f.pose for f in solution.sensors] == poses and reached(solution.n_covered)
 
 
@@ -793,8 +798,9 @@ def test_rejoin_keeps_a_standing_sensor_and_its_mast_free():
     solution.sensors[0] = replace(fixed, existing=True)
     problem.space.standing[cands.position[a]] = True
     fix_candidate(problem, solution, cands, b)
-    before, after = drain(parts_module.rejoin(problem, solution, None, None))
+    before, after, on_masts = drain(parts_module.rejoin(problem, solution, None, None))
     assert (before, after) == (4.0, 1.0)
+    assert 0.0 < on_masts <= 1.0 + 1e-6  # the one planned sensor, on either mast
     assert solution.sensors[0].existing and solution.sensors[0].pose == fixed.pose
     assert {(f.pose.x, f.pose.y) for f in solution.sensors} == {(60.0, 8.0)}
 
@@ -809,7 +815,8 @@ def test_rejoin_stopped_keeps_the_plan():
     poses = [f.pose for f in solution.sensors]
     stop = threading.Event()
     stop.set()
-    assert drain(parts_module.rejoin(problem, solution, None, stop)) == (8.0, 8.0)
+    # (nothing proven on its masts either)
+    assert drain(parts_module.rejoin(problem, solution, None, stop)) == (8.0, 8.0, 0.0)
     assert [f.pose for f in solution.sensors] == poses
 
 

@@ -98,7 +98,11 @@ class PlanBound:
     ``sensor_cost`` x ``sensors``); with models of different costs ``lp`` is that
     bound and ``sensors`` follows from it through the dearest model; joint: a proven
     lower bound on the cost from masts and sensors together (``joint.py``), 0 if not
-    known.
+    known; on_masts: the fewest new sensors of any plan whose new sensors stand on
+    the plan's own masts or those that stood already (``joint.sensors_on_masts``;
+    None: not proven). Unlike the
+    others it holds for plans on those masts alone: it tells whether a cheaper plan
+    could keep them.
     """
 
     sensors: int
@@ -109,6 +113,7 @@ class PlanBound:
     cost_lp: float = 0.0
     sensor_cost_lp: float | None = None
     joint: float = 0.0
+    on_masts: int | None = None
 
     def objective(self, objective: str, mast_cost: float, sensor_cost: float) -> float:
         """The bound on ``objective``: sensors, masts, or cost = mast_cost x masts +

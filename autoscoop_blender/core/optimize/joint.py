@@ -87,8 +87,10 @@ from scipy import sparse
 
 from .bound import (
     SAFETY,
+    MergedPoints,
     Solve,
     _add_columns,
+    _cover_rows,
     _le_zero_rows,
     _new_highs,
     _run,
@@ -607,6 +609,74 @@ def masts_sensors_lp(
         value, best[at],
     )  # fmt: skip
     return MastsSensors(masts, best, value, rounds, complete, settled)
+
+
+def sensors_on_masts(
+    inst: CoverInstance,
+    site_of: I64,
+    sites: I64,
+    deadline: float | None = None,
+    stop: threading.Event | None = None,
+) -> Generator[None, None, float]:
+    """A lower bound on the new sensors of any plan whose new sensors all stand at
+    ``sites`` (mast positions, e.g. a plan's own; site_of: (C,) each candidate's):
+    the LP of such plans (every candidate there in [0, 1], at most each site's room,
+    the cover rows and the goal) bounded from its duals, as ``f`` is with the masts
+    fixed open, so the solver's tolerance cannot lift it. It tells a planner whether
+    a cheaper plan could keep the masts: on two_routes the plan of 35 sensors on 13
+    masts has an LP of 34.33 on them, so none on those masts has fewer. inf when the
+    sites cannot reach the goal; 0 when stopped, or at ``deadline``
+    (``time.perf_counter()``), before the LP's end. Yields None while HiGHS works."""
+    if deadline is not None and time.perf_counter() >= deadline:
+        return 0.0
+    cols = np.flatnonzero(np.isin(site_of, sites))
+    # Points seen by the same of these candidates are one row (``MergedPoints``): a
+    # group's dual pi_g prices all of its ``weight_g`` points at once.
+    merged = MergedPoints.of(sparse.csr_matrix(inst.matrix[cols]), inst.k)
+    n, n_cols = merged.matrix.shape[1], len(cols)
+    if merged.weight.sum() < inst.goal:
+        return math.inf  # they see fewer points than the goal
+    h = _new_highs(None)
+    _cover_rows(h, n, inst.goal, merged.need if inst.multi else None, merged.weight)
+    _add_columns(h, merged.matrix, np.ones(n_cols), 1.0)
+    room = np.full(n_cols, n_cols, dtype=np.int64)  # no cap: every candidate may stand
+    if inst.cap is not None:
+        local, which = np.unique(site_of[cols], return_inverse=True)
+        which = which.ravel()
+        limit = inst.room(local)
+        room = limit[which]
+        per_site = sparse.csr_matrix(
+            (np.ones(n_cols), (which, n + np.arange(n_cols))), shape=(len(local), n + n_cols)
+        )
+        h.addRows(len(local), np.full(len(local), -highspy.kHighsInf), limit.astype(float),
+                  per_site.nnz, per_site.indptr[:-1].astype(np.int32),
+                  per_site.indices.astype(np.int32), per_site.data)  # fmt: skip
+    if deadline is not None:
+        limit_to(h, deadline)
+    if (yield from _run(h, stop)) is not Solve.DONE:
+        return 0.0
+    status = h.getModelStatus()
+    if status in (
+        highspy.HighsModelStatus.kInfeasible, highspy.HighsModelStatus.kUnboundedOrInfeasible
+    ):  # (never unbounded: nothing costs less than 0)
+        return math.inf  # these masts cannot reach the goal
+    if status != highspy.HighsModelStatus.kOptimal:
+        return 0.0  # (the deadline)
+    duals = np.asarray(h.getSolution().row_dual)
+    pi, sigma = np.maximum(duals[:n], 0.0), max(float(duals[n]), 0.0)
+    # The Lagrangian of the cover rows and the goal row at (pi, sigma): each group's
+    # u at its best in [0, 1], each site's best ``room`` candidates at 1.
+    excess = np.maximum(0.0, np.asarray(merged.matrix @ pi, dtype=float) - 1.0)
+    order = np.lexsort((-excess, site_of[cols]))
+    at = site_of[cols][order]
+    rank = np.arange(n_cols) - np.searchsorted(at, at)
+    kept = order[rank < room[order]]
+    value = (
+        sigma * inst.goal
+        - float(np.maximum(0.0, sigma * merged.weight - merged.need * pi).sum())
+        - float(excess[kept].sum())
+    )
+    return value - SAFETY * (abs(value) + 1.0)
 
 
 def enough_sensors(best: float, mast_cost: float, sensor_price: float, masts: int) -> float:

@@ -96,6 +96,7 @@ from .bound import (
     site_matrix,
 )
 from .cover import Cover, CoverInstance, complete
+from .joint import sensors_on_masts
 from .lp import (
     PartInputs,
     in_gain_order,
@@ -650,14 +651,26 @@ def _fix_again(solution: Solution, sensors: list[FixedSensor]) -> None:
         solution.fix(replace(s, newly=newly_covered(solution, _seen(s))))
 
 
+class Rejoined(NamedTuple):
+    """What ``rejoin`` did: the re-planned sensors' cost (the objective) before and
+    after, and a lower bound on the new sensors of any plan on the masts it re-planned
+    on and those that stood already (``joint.sensors_on_masts``; 0: not proven, as by
+    windows)."""
+
+    before: float
+    after: float
+    on_masts: float = 0.0
+
+
 def rejoin_windows(
     problem: Problem, solution: Solution, deadline: float | None, stop: threading.Event | None
-) -> Generator[None, None, tuple[float, float]]:
+) -> Generator[None, None, Rejoined]:
     """``rejoin`` over the whole plan when it has at most ``REJOIN_MASTS`` masts; else
     window by window: its masts split into compact groups of at most that many
     (``parts_of`` on their positions), each re-planned with the sensors outside it
     kept as they are, each window given an equal share of the time left. Returns the
-    plan's cost before and after (both 0 when nothing was planned)."""
+    plan's cost before and after (both 0 when nothing was planned), and by windows no
+    bound on its masts."""
     planned = [f for f in solution.sensors if not f.existing]
     sites = _mast_sites(problem, planned)
     n = math.ceil(len(sites) / REJOIN_MASTS)
@@ -674,7 +687,7 @@ def rejoin_windows(
         share = None if deadline is None else now + (deadline - now) / (n - k)
         yield from rejoin(problem, solution, share, stop, window=sites[group == k])
         after = plan_cost_of(problem, solution.sensors)
-    return before, after
+    return Rejoined(before, after)
 
 
 def plan_cost_of(problem: Problem, sensors: list[FixedSensor]) -> float:
@@ -696,7 +709,7 @@ def rejoin(
     deadline: float | None,
     stop: threading.Event | None,
     window: I64 | None = None,
-) -> Generator[None, None, tuple[float, float]]:
+) -> Generator[None, None, Rejoined]:
     """The plan re-planned over the whole ground on its own masts: the mast-aware MILP
     (``sensors_on_sites``) on every candidate at the positions its planned sensors
     stand at, each over every target point, from the plan itself. Each part was
@@ -707,7 +720,9 @@ def rejoin(
     (positions) are re-planned, the others kept as they are. The plan is replaced
     only by a cheaper one that still meets the goal when its sensors are evaluated
     afresh. Returns the cost (the objective) of the sensors re-planned before and
-    after; (0, 0) when nothing was planned."""
+    after, (0, 0) when nothing was planned; and over the whole plan, the LP of the
+    fewest new sensors on those masts, solved before the MILP, which may use the time
+    to its deadline (on Town01's 29 masts ... s)."""
     inside = None if window is None else {int(k) for k in window}
 
     def replanned(f: FixedSensor) -> bool:
@@ -718,7 +733,7 @@ def rejoin(
     planned = [f for f in solution.sensors if replanned(f)]
     kept = [f for f in solution.sensors if not replanned(f)]
     if not planned:
-        return 0.0, 0.0
+        return Rejoined(0.0, 0.0)
     # Its masts, and those that stand already (a sensor moved there adds no mast).
     sites = np.union1d(_mast_sites(problem, planned), np.flatnonzero(problem.space.standing))
     cands = yield from quiet(build_on_sites(problem, sites))
@@ -742,11 +757,14 @@ def rejoin(
     for f in planned:
         at = np.flatnonzero(cands.position == problem.space.index_of(f.pose.x, f.pose.y))
         if len(at) == 0:  # it sees no target point: nothing to start from
-            return 0.0, 0.0
+            return Rejoined(0.0, 0.0)
         mine = np.zeros(inst.n_points)
         mine[column[_seen(f)][column[_seen(f)] >= 0]] = 1.0
         start.append(int(at[np.argmax(inst.matrix[at] @ mine)]))
     before = plan_value(problem, cands, start)
+    on_masts = 0.0
+    if window is None:
+        on_masts = yield from sensors_on_masts(inst, cands.position, sites, deadline, stop)
     cols = milp_candidates(inst, cands.position, sites, start)
     mc, sc = mast_aware_costs(problem, cands, len(cols))
     chosen = yield from sensors_on_sites(
@@ -754,15 +772,15 @@ def rejoin(
     )
     after = plan_value(problem, cands, chosen)
     if after >= before:
-        return before, before
+        return Rejoined(before, before, on_masts)
     old = list(solution.sensors)
     _fix_again(solution, kept)
     for c in in_gain_order(inst, chosen):
         fix_candidate(problem, solution, cands, c)
     if not problem.reached(solution.n_covered):  # the fresh evaluation fell short
         _fix_again(solution, old)
-        return before, before
-    return before, after
+        return Rejoined(before, before, on_masts)
+    return Rejoined(before, after, on_masts)
 
 
 class PartBuilder(Protocol):
@@ -1020,13 +1038,18 @@ def solve_in_parts(
     dropped = prune(problem, solution)
     # Cut short: stopped, or the parts ran to their end (the time limit less the re-plan's).
     early = stopped or late() or (parts_end is not None and time.perf_counter() > parts_end)
-    saved = (0.0, 0.0)
+    saved = Rejoined(0.0, 0.0)
     if n_parts > 1 and not late() and problem.reached(solution.n_covered):
         last = max(n_parts - 1, 0)
         replan = rejoin_windows(problem, solution, deadline, stop)
         saved = (yield from busy(replan, last, "seams")) or saved
-        log.info("seams: the plan over the whole ground on its own masts: %g -> %g", *saved)
+        log.info(
+            "seams: the plan over the whole ground on its own masts: %g -> %g (its sensors "
+            "LP there %.2f)", *saved,
+        )  # fmt: skip
     solution.bound = bound_now()
+    if 0 < saved.on_masts < math.inf:
+        solution.bound = replace(solution.bound, on_masts=math.ceil(saved.on_masts - 1e-6))
     if problem.reached(solution.n_covered):
         solution.stop_reason = StopReason.reached(rho, early=early)
     elif stopped:
@@ -1038,8 +1061,9 @@ def solve_in_parts(
         solution.stop_reason = StopReason.out_of_sight("candidate pose")
     if dropped:
         solution.stop_reason += f" {dropped} sensor(s) the parts' seams made redundant dropped."
-    if saved[1] < saved[0]:
+    if saved.after < saved.before:
         solution.stop_reason += (
-            f" Re-planned over the whole ground on its own masts: {saved[0]:g} -> {saved[1]:g}."
+            f" Re-planned over the whole ground on its own masts: {saved.before:g} -> "
+            f"{saved.after:g}."
         )
     return solution
