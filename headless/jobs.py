@@ -324,7 +324,9 @@ def gap_line(result: Result) -> str | None:
     candidate set has fewer than 26 masts or fewer than 58 sensors; this one has 29
     and 73". With the fewest sensors on the plan's own masts proven
     (``sensors_on_masts_lower_bound``) it says whether a cheaper plan could keep
-    them: "...; none on its masts has fewer: a cheaper plan needs other masts"."""
+    them: "...; none on its masts has fewer sensors: a plan with fewer needs other
+    masts" (and where the masts are the fewest too, as on two_routes, so does a
+    cheaper plan)."""
     m = result.metrics
     if not m.get("gap"):
         return None
@@ -345,7 +347,7 @@ def gap_line(result: Result) -> str | None:
     if on_masts is None:
         return text
     if on_masts >= m["sensors"] - m.get("existing_sensors", 0):
-        return f"{text}; none on its masts has fewer: a cheaper plan needs other masts"
+        return f"{text}; none on its masts has fewer sensors: a plan with fewer needs other masts"
     return f"{text}; on its masts a plan needs at least {_count(on_masts, new + 'sensor')}"
 
 

@@ -456,9 +456,8 @@ def objective_metrics(
     on the cost from masts and sensors together (``joint.py``; None: not proven);
     sensors_on_masts_lower_bound: no plan whose new sensors stand on this plan's masts
     (or those that stood already) has fewer new sensors (None: not proven); lp_bound:
-    the LP
-    relaxation's bound on the sensors, before rounding up (with models of different
-    costs: on what the sensors cost).
+    the LP relaxation's bound on the sensors, before rounding up (with models of
+    different costs: on what the sensors cost).
     """
     if sensors_cost is None:
         sensors_cost = settings.sensor_cost * sensors

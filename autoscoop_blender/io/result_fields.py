@@ -105,8 +105,8 @@ METRICS: Fields = {
     "sensors_on_masts_lower_bound": (
         "integer",
         "no plan whose new sensors stand on this plan's masts (or on masts that stood "
-        "already) has fewer new sensors: when it equals the plan's, a cheaper plan needs "
-        "other masts; null when not proven (a plan proven optimal, a run stopped or out "
+        "already) has fewer new sensors: when it equals the plan's, a plan with fewer "
+        "needs other masts; null when not proven (a plan proven optimal, a run stopped or out "
         "of time first, a ground in parts re-planned by windows)",
     ),
     "joint_lower_bound": (

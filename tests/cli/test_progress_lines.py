@@ -287,8 +287,8 @@ def test_the_gap_line_says_whether_a_cheaper_plan_could_keep_the_masts():
     head = "no plan on the candidate set has fewer than 26 masts or fewer than 58 sensors; "
     # As many sensors on its masts as it has: the masts must change.
     assert gap_line(_with(sensors_on_masts_lower_bound=73)) == (
-        head + "this one has 29 and 73; none on its masts has fewer: a cheaper plan needs "
-        "other masts"
+        head + "this one has 29 and 73; none on its masts has fewer sensors: a plan with "
+        "fewer needs other masts"
     )
     # Fewer: a plan on the same masts might do with fewer sensors.
     assert gap_line(_with(sensors_on_masts_lower_bound=70)) == (
@@ -297,6 +297,7 @@ def test_the_gap_line_says_whether_a_cheaper_plan_could_keep_the_masts():
     # With sensors standing, the plan's new sensors against the new ones' bound.
     standing = _with(existing_sensors=3, sensors_on_masts_lower_bound=70)
     assert gap_line(standing).endswith(
-        "this one has 29 and 70; none on its masts has fewer: a cheaper plan needs other masts"
+        "this one has 29 and 70; none on its masts has fewer sensors: a plan with fewer needs "
+        "other masts"
     )
     assert gap_line(_with(sensors_on_masts_lower_bound=None)) == head + "this one has 29 and 73"

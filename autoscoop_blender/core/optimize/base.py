@@ -100,9 +100,8 @@ class PlanBound:
     lower bound on the cost from masts and sensors together (``joint.py``), 0 if not
     known; on_masts: the fewest new sensors of any plan whose new sensors stand on
     the plan's own masts or those that stood already (``joint.sensors_on_masts``;
-    None: not proven). Unlike the
-    others it holds for plans on those masts alone: it tells whether a cheaper plan
-    could keep them.
+    None: not proven). Unlike the others it holds for plans on those masts alone: it
+    tells whether a plan with fewer sensors could keep them.
     """
 
     sensors: int

@@ -629,6 +629,7 @@ def sensors_on_masts(
     (``time.perf_counter()``), before the LP's end. Yields None while HiGHS works."""
     if deadline is not None and time.perf_counter() >= deadline:
         return 0.0
+    began = time.perf_counter()
     cols = np.flatnonzero(np.isin(site_of, sites))
     # Points seen by the same of these candidates are one row (``MergedPoints``): a
     # group's dual pi_g prices all of its ``weight_g`` points at once.
@@ -676,6 +677,10 @@ def sensors_on_masts(
         - float(np.maximum(0.0, sigma * merged.weight - merged.need * pi).sum())
         - float(excess[kept].sum())
     )
+    log.info(
+        "sensors LP on %d masts (%d candidates, %d groups of points): %.3f in %.2f s",
+        len(sites), n_cols, n, value, time.perf_counter() - began,
+    )  # fmt: skip
     return value - SAFETY * (abs(value) + 1.0)
 
 
