@@ -650,6 +650,26 @@ def test_same_settings_same_plan():
     ]
     m = runs[0].metrics
     assert m["objective"] >= m["lower_bound"] and 0 <= m["gap"] < 1
+    # Proven optimal (3 sensors on 2 masts): no LP on its own masts is asked for (the
+    # CLI's two_routes run checks one with a gap).
+    assert m["gap"] == 0 and m["sensors_on_masts_lower_bound"] is None
+
+
+def test_the_lp_on_the_plans_masts_may_take_half_the_finish(monkeypatch):
+    """A whole ground with a limit of 60 s: the search ends at 57 s (the finish keeps
+    3 s), and the LP on the plan's own masts may go on to 58.5 s."""
+    seen = []
+
+    def spy(problem, cands, inst, solution, chosen, bound, deadline, stop):
+        seen.append(deadline)
+        return bound
+        yield
+
+    monkeypatch.setattr(lp_module, "_on_masts", spy)
+    scene = areas_scene([shapely.box(0, -7, 60, 7)], [shapely.box(0, 10, 60, 14)])
+    run = Run(scene, box_caster(), PAPER_CAMERA, replace(LP, time_limit_s=60.0))
+    run.result()
+    assert seen == [pytest.approx(run.problem.t0 + 58.5)]
 
 
 def test_other_optimizers_get_the_bound_when_asked():
@@ -678,6 +698,7 @@ def test_stopping_early_keeps_the_best_plan_and_a_proven_bound():
     m = res.metrics
     assert "Stopped early" in res.stop_reason and m["coverage_fraction"] >= 0.9
     assert 0 <= m["lower_bound"] <= m["objective"]
+    assert m["sensors_on_masts_lower_bound"] is None  # (no LP on its masts once stopped)
     full = Run(scene, box_caster(), PAPER_CAMERA, LP).result().metrics
     assert m["lower_bound"] <= full["lower_bound"] and full["objective"] <= m["objective"]
     # The ES has no early stop: Esc cancels it.

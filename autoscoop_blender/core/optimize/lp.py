@@ -781,8 +781,8 @@ def _on_masts(
 ) -> Generator[Progress, None, PlanBound]:
     """``bound`` with the fewest new sensors of any plan on ``chosen``'s masts and
     those that stood already (``joint.sensors_on_masts``: on two_routes 0.65 s, at
-    k = 2 about 5 s), where a gap is left for it to explain, before the ``deadline``
-    and unless stopped."""
+    k = 2 3.9 s), where a gap is left for it to explain, before the ``deadline`` and
+    unless stopped."""
     s = problem.settings
     best = plan_value(problem, cands, chosen)
     late = deadline is not None and time.perf_counter() >= deadline
@@ -997,9 +997,12 @@ def solve_whole(
     solution: Solution,
     deadline: float | None,
     stop: threading.Event,
+    proof_deadline: float | None = None,
 ) -> Generator[Progress, None, Solution]:
     """The lp optimizer on the whole ground at once (see the module docstring): the
-    candidate set, the bounds and the best plan, whose sensors it then fixes."""
+    candidate set, the bounds and the best plan, whose sensors it then fixes.
+    proof_deadline: when the LP of the sensors on the plan's own masts must end
+    (default: ``deadline``)."""
     cands = yield from candidates_until(problem, solution, stop)
     if cands is None:
         solution.stop_reason = StopReason.stopped_before_plan()
@@ -1016,8 +1019,9 @@ def solve_whole(
         return solution
     chosen, bound, _ = yield from prove_and_plan(problem, cands, inst, solution, deadline, stop)
     solution.bound = yield from _on_masts(
-        problem, cands, inst, solution, chosen, bound, deadline, stop
-    )
+        problem, cands, inst, solution, chosen, bound,
+        deadline if proof_deadline is None else proof_deadline, stop,
+    )  # fmt: skip
     order = in_gain_order(inst, chosen)
     # In the order they are fixed: those the goal leaves unfixed last, made ready last.
     solution.ahead = sensors_of(problem, cands, order)

@@ -45,10 +45,15 @@ def time_limit(settings: OptimizeSettings, n_parts: int) -> float:
     return max(DEFAULT_LIMIT_S, min(DEFAULT_LIMIT_S_PER_PART * n_parts, cap))
 
 
+def finish_s(limit_s: float) -> float:
+    """What a run within ``limit_s`` keeps for the work after the search, s."""
+    return max(FINISH_MIN_S, FINISH_SHARE * limit_s)
+
+
 def search_deadline(t0: float, limit_s: float) -> float:
     """When the search must end (``time.perf_counter()``) for a run started at ``t0``
     to end within ``limit_s``: the finish's share of the limit kept for it."""
-    return t0 + limit_s - max(FINISH_MIN_S, FINISH_SHARE * limit_s)
+    return t0 + limit_s - finish_s(limit_s)
 
 
 class LPPlanner:
@@ -71,11 +76,19 @@ class LPPlanner:
 
     def solve(self, problem: Problem, solution: Solution) -> Generator[Progress, None, Solution]:
         n_parts = part_count(problem)
-        deadline = search_deadline(problem.t0, time_limit(problem.settings, n_parts))
+        limit = time_limit(problem.settings, n_parts)
+        deadline = search_deadline(problem.t0, limit)
         if n_parts > 1:
             return (
                 yield from solve_in_parts(
                     problem, solution, n_parts, deadline, self.stop, self.builder
                 )
             )
-        return (yield from solve_whole(problem, solution, deadline, self.stop))
+        # The LP on the plan's own masts may take half the finish's share: a search
+        # that runs to its deadline (at k = 2) leaves it no time, and the finish of a
+        # plan evaluated ahead takes about 1 s of its 12.
+        return (
+            yield from solve_whole(
+                problem, solution, deadline, self.stop, deadline + finish_s(limit) / 2
+            )
+        )
