@@ -474,6 +474,26 @@ def test_the_sensors_on_given_masts_count_halves_and_the_room_left():
     assert _on_masts(dataclasses.replace(inst, goal=2), [0]) == pytest.approx(1.0, abs=1e-5)
 
 
+def test_the_sensors_on_given_masts_take_each_masts_room_not_its_cap():
+    """Site 0 has three candidates of two points each (0-1, 2-3, 4-5) and one sensor
+    standing (cap 3: room for 2); site 1 one candidate per point. All 6 points: two
+    pairs from site 0 and two single points from site 1, 4 sensors. A bound that let
+    site 0 take all three pairs (its cap, not its room) would prove only 3."""
+    rows = [[0, 1], [2, 3], [4, 5]] + [[n] for n in range(6)]
+    inst = _instance(rows, 6, [0, 0, 0] + [1] * 6, goal=6, cap=3)
+    inst = dataclasses.replace(inst, held=np.array([1, 0]))
+    assert _brute_force_on(inst, [0, 1]) == 4
+    assert _on_masts(inst, [0, 1]) == pytest.approx(4.0, abs=1e-5)
+
+
+def test_whole_sensors_round_up_past_the_tolerance():
+    """two_routes' LP on the plan's 13 masts, 34.33: 35; a bound a hair above a whole
+    number (the solver's noise) stays at it; 0 and inf prove nothing."""
+    assert joint.whole_sensors(34.333) == 35
+    assert joint.whole_sensors(35.0000001) == 35
+    assert joint.whole_sensors(0.0) is None and joint.whole_sensors(math.inf) is None
+
+
 def test_the_sensors_on_given_masts_stopped_or_late_prove_nothing():
     stopped = threading.Event()
     stopped.set()

@@ -684,6 +684,15 @@ def sensors_on_masts(
     return value - SAFETY * (abs(value) + 1.0)
 
 
+def whole_sensors(bound: float) -> int | None:
+    """The fewest whole sensors that a bound on them (``sensors_on_masts``) proves;
+    None where it proves nothing (0: stopped, inf: the masts cannot reach the goal,
+    which a plan's own masts always can)."""
+    if not 0 < bound < math.inf:
+        return None
+    return max(0, math.ceil(bound - 1e-6))
+
+
 def enough_sensors(best: float, mast_cost: float, sensor_price: float, masts: int) -> float:
     """The sensors on ``masts`` masts beyond which the joint bound there proves
     nothing more: the whole sensors it rounds up to then cost at least ``best``, the

@@ -87,7 +87,7 @@ from .cover import (
     improve,
     plan_price,
 )
-from .joint import MastsSensors, joint_bound, sensors_on_masts
+from .joint import MastsSensors, joint_bound, sensors_on_masts, whole_sensors
 from .neighbourhoods import improve as improve_by_windows
 
 F64 = NDArray[np.float64]
@@ -794,9 +794,7 @@ def _on_masts(
         sensors_on_masts(inst, cands.position, sites, deadline, stop),
         solution, problem, best, bound, "plans",
     )  # fmt: skip
-    if not 0 < fewest < math.inf:
-        return bound
-    return dataclasses.replace(bound, on_masts=max(0, math.ceil(fewest - 1e-6)))
+    return dataclasses.replace(bound, on_masts=whole_sensors(fewest))
 
 
 def _joint_bound(

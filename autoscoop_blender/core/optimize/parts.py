@@ -96,7 +96,7 @@ from .bound import (
     site_matrix,
 )
 from .cover import Cover, CoverInstance, complete
-from .joint import sensors_on_masts
+from .joint import sensors_on_masts, whole_sensors
 from .lp import (
     PartInputs,
     in_gain_order,
@@ -1048,9 +1048,7 @@ def solve_in_parts(
             "seams: the plan over the whole ground on its own masts: %g -> %g (its sensors "
             "LP there %.2f)", *saved,
         )  # fmt: skip
-    solution.bound = bound_now()
-    if 0 < saved.on_masts < math.inf:
-        solution.bound = replace(solution.bound, on_masts=math.ceil(saved.on_masts - 1e-6))
+    solution.bound = replace(bound_now(), on_masts=whole_sensors(saved.on_masts))
     if problem.reached(solution.n_covered):
         solution.stop_reason = StopReason.reached(rho, early=early)
     elif stopped:
