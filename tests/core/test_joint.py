@@ -447,7 +447,7 @@ def test_an_lp_stopped_before_its_first_solve_proves_nothing():
 
 
 def _on_masts(inst, sites, **kwargs):
-    return steps(joint.sensors_on_masts(inst, inst.site_of, np.asarray(sites), **kwargs))[0]
+    return steps(joint.sensors_on_masts(inst, inst.site_of, np.asarray(sites), **kwargs))[0].bound
 
 
 def test_the_sensors_on_given_masts_by_hand():

@@ -662,7 +662,7 @@ def test_the_lp_on_the_plans_masts_may_take_half_the_finish(monkeypatch):
 
     def spy(problem, cands, inst, solution, chosen, bound, deadline, stop):
         seen.append(deadline)
-        return bound
+        return bound, chosen
         yield
 
     monkeypatch.setattr(lp_module, "_on_masts", spy)
@@ -796,3 +796,21 @@ def test_a_thinned_instance_keeps_one_point_a_square_and_the_goal_share():
     assert inst.thinned(2.0, (1.0, 0.0)).xy.tolist() == xy[[0, 2, 4]].tolist()
     assert inst.cells(2.0, (1.0, 0.0))[1].tolist() == [0, 0, 1, 1, 2]
     assert inst.thinned(2.0, (0.0, 1.0)).xy.tolist() == xy[[0, 3, 4]].tolist()
+
+
+def test_a_plan_rounded_on_given_masts_keeps_each_masts_room():
+    """Site 0 holds candidates for points 0, 1 and 2 (cap 2), site 1 one for point 2.
+    At x = 0.9, 0.8, 0.7, 0.1 and a threshold of 0.5 the two largest fill site 0, the
+    third waits for room that never comes, and greedy completes the goal from site 1:
+    candidates 0, 1 and 3 on two masts. Above every x, greedy alone plans it, within
+    the cap too."""
+    matrix = sparse.csr_matrix(
+        (np.ones(4, np.float32), ([0, 1, 2, 3], [0, 1, 2, 2])), shape=(4, 3)
+    )
+    site_of = np.array([0, 0, 0, 1])
+    inst = CoverInstance(matrix, 3, site_of=site_of, cap=2)
+    cols, x = np.arange(4), np.array([0.9, 0.8, 0.7, 0.1])
+    plan = lp_module.plan_on_masts(inst, site_of, cols, x, 0.5, 3.0, 1.0)
+    assert sorted(plan.chosen) == [0, 1, 3] and plan.slack == 0
+    alone = lp_module.plan_on_masts(inst, site_of, cols, x, 0.95, 3.0, 1.0)
+    assert alone.slack == 0 and np.bincount(site_of[alone.chosen]).max() <= 2

@@ -611,32 +611,44 @@ def masts_sensors_lp(
     return MastsSensors(masts, best, value, rounds, complete, settled)
 
 
+@dataclass(frozen=True)
+class OnMasts:
+    """The LP of the sensors on given masts (``sensors_on_masts``): bound, a lower
+    bound on the new sensors of any plan on them (0: nothing proven, inf: they cannot
+    reach the goal); cols (K,) the candidates at those masts and x (K,) the LP's
+    solution over them (None when it was not solved to its end)."""
+
+    bound: float
+    cols: I64
+    x: F64 | None = None
+
+
 def sensors_on_masts(
     inst: CoverInstance,
     site_of: I64,
     sites: I64,
     deadline: float | None = None,
     stop: threading.Event | None = None,
-) -> Generator[None, None, float]:
+) -> Generator[None, None, OnMasts]:
     """A lower bound on the new sensors of any plan whose new sensors all stand at
     ``sites`` (mast positions, e.g. a plan's own; site_of: (C,) each candidate's):
     the LP of such plans (every candidate there in [0, 1], at most each site's room,
     the cover rows and the goal) bounded from its duals, as ``f`` is with the masts
     fixed open, so the solver's tolerance cannot lift it. It tells a planner whether
     a cheaper plan could keep the masts: on two_routes the plan of 35 sensors on 13
-    masts has an LP of 34.33 on them, so none on those masts has fewer. inf when the
-    sites cannot reach the goal; 0 when stopped, or at ``deadline``
+    masts has an LP of 34.33 on them, so none on those masts has fewer. The bound is
+    inf when the sites cannot reach the goal; 0 when stopped, or at ``deadline``
     (``time.perf_counter()``), before the LP's end. Yields None while HiGHS works."""
-    if deadline is not None and time.perf_counter() >= deadline:
-        return 0.0
-    began = time.perf_counter()
     cols = np.flatnonzero(np.isin(site_of, sites))
+    if deadline is not None and time.perf_counter() >= deadline:
+        return OnMasts(0.0, cols)
+    began = time.perf_counter()
     # Points seen by the same of these candidates are one row (``MergedPoints``): a
     # group's dual pi_g prices all of its ``weight_g`` points at once.
     merged = MergedPoints.of(sparse.csr_matrix(inst.matrix[cols]), inst.k)
     n, n_cols = merged.matrix.shape[1], len(cols)
     if merged.weight.sum() < inst.goal:
-        return math.inf  # they see fewer points than the goal
+        return OnMasts(math.inf, cols)  # they see fewer points than the goal
     h = _new_highs(None)
     _cover_rows(h, n, inst.goal, merged.need if inst.multi else None, merged.weight)
     _add_columns(h, merged.matrix, np.ones(n_cols), 1.0)
@@ -655,14 +667,14 @@ def sensors_on_masts(
     if deadline is not None:
         limit_to(h, deadline)
     if (yield from _run(h, stop)) is not Solve.DONE:
-        return 0.0
+        return OnMasts(0.0, cols)
     status = h.getModelStatus()
     if status in (
         highspy.HighsModelStatus.kInfeasible, highspy.HighsModelStatus.kUnboundedOrInfeasible
     ):  # (never unbounded: nothing costs less than 0)
-        return math.inf  # these masts cannot reach the goal
+        return OnMasts(math.inf, cols)  # these masts cannot reach the goal
     if status != highspy.HighsModelStatus.kOptimal:
-        return 0.0  # (the deadline)
+        return OnMasts(0.0, cols)  # (the deadline)
     duals = np.asarray(h.getSolution().row_dual)
     pi, sigma = np.maximum(duals[:n], 0.0), max(float(duals[n]), 0.0)
     # The Lagrangian of the cover rows and the goal row at (pi, sigma): each group's
@@ -681,7 +693,8 @@ def sensors_on_masts(
         "sensors LP on %d masts (%d candidates, %d groups of points): %.3f in %.2f s",
         len(sites), n_cols, n, value, time.perf_counter() - began,
     )  # fmt: skip
-    return value - SAFETY * (abs(value) + 1.0)
+    x = np.asarray(h.getSolution().col_value)[n:]
+    return OnMasts(value - SAFETY * (abs(value) + 1.0), cols, x)
 
 
 def whole_sensors(bound: float) -> int | None:

@@ -100,6 +100,10 @@ log = logging.getLogger(__name__)
 POOL_REDUCED_COST = 0.2
 # LP values at or above which a candidate is kept when rounding, one plan each.
 THRESHOLDS = (0.9, 0.7, 0.5, 0.3, 0.2)
+# Plans rounded from the LP on the plan's own masts (``plan_on_masts``), in this order
+# while time is left: at k = 2 on two_routes, from a plan of 152 on 23 masts, 0.25
+# gave 135, 0.75 137, 0.5 and 0.99 138 (0.7-0.8 s each).
+ON_MASTS_THRESHOLDS = (0.25, 0.75, 0.5, 0.99)
 # At k > 1, the LP values above which its columns are a pool for greedy per cost
 # (``_then_windows``), one plan each. On two_routes at k = 2 (2026-11-30, one stored
 # LP of 320 columns above 0) they gave 151 (above 0), 141 (above 0.05) and 142
@@ -423,6 +427,15 @@ def hold_best(
     i = int(np.argmin(values))
     solution.ahead = sensors_of(problem, cands, plans[i])
     return values[i]
+
+
+def _at_plans(
+    problem: Problem, cands: CandidateSet, solution: Solution, lower: float, plans: list[list[int]]
+) -> Progress:
+    """A progress report at the plans' stage: the bound ``lower`` and the cheapest of
+    ``plans``, which the solution then holds as its sensors ahead (``hold_best``)."""
+    best = hold_best(problem, cands, solution, plans)
+    return solution.progress("search", problem.rho, bound=lower, best=best, stage="plans")
 
 
 def sensors_of(
@@ -778,23 +791,67 @@ def _on_masts(
     bound: PlanBound,
     deadline: float | None,
     stop: threading.Event | None,
-) -> Generator[Progress, None, PlanBound]:
-    """``bound`` with the fewest new sensors of any plan on ``chosen``'s masts and
-    those that stood already (``joint.sensors_on_masts``: on two_routes 0.65 s, at
-    k = 2 3.9 s), where a gap is left for it to explain, before the ``deadline`` and
-    unless stopped."""
+) -> Generator[Progress, None, tuple[PlanBound, list[int]]]:
+    """(``bound`` with the fewest new sensors of any plan on ``chosen``'s masts and
+    those that stood already, the plan): the LP on those masts
+    (``joint.sensors_on_masts``: on two_routes 0.65 s, at k = 2 3.9 s) where a gap is
+    left for it to explain, and plans rounded from it (``plan_on_masts``) in the time
+    left before the ``deadline``; the plan is the cheapest of ``chosen`` and those.
+    Unless stopped."""
     s = problem.settings
     best = plan_value(problem, cands, chosen)
     late = deadline is not None and time.perf_counter() >= deadline
     if not chosen or best <= bound.objective(s.objective, s.mast_cost, s.sensor_cost) or late:
-        return bound
+        return bound, chosen
     # Its masts and those that stood already (a sensor moved there adds no mast).
     sites = np.union1d(cands.position[chosen], np.flatnonzero(problem.space.standing))
-    fewest = yield from _progress(
+    lp = yield from _progress(
         sensors_on_masts(inst, cands.position, sites, deadline, stop),
         solution, problem, best, bound, "plans",
     )  # fmt: skip
-    return dataclasses.replace(bound, on_masts=whole_sensors(fewest))
+    bound = dataclasses.replace(bound, on_masts=whole_sensors(lp.bound))
+    plans = [chosen]
+    for threshold in ON_MASTS_THRESHOLDS:
+        if lp.x is None or (stop is not None and stop.is_set()):
+            break
+        if deadline is not None and time.perf_counter() >= deadline:
+            break
+        mc, sc = mast_aware_costs(problem, cands, len(lp.cols))
+        rounded = plan_on_masts(inst, cands.position, lp.cols, lp.x, threshold, mc, sc)
+        if rounded.slack >= 0:
+            plans.append(rounded.chosen)
+        lower = bound.objective(s.objective, s.mast_cost, s.sensor_cost)
+        yield _at_plans(problem, cands, solution, lower, plans)
+    if log.isEnabledFor(logging.INFO):
+        log.info(
+            "plans rounded from the LP on the plan's %d masts (%.2f): %s",
+            len(sites), lp.bound, [plan_value(problem, cands, p) for p in plans],
+        )  # fmt: skip
+    return bound, min(plans, key=lambda p: plan_value(problem, cands, p))
+
+
+def plan_on_masts(
+    inst: CoverInstance,
+    site_of: I64,
+    cols: I64,
+    x: F64,
+    threshold: float,
+    mast_cost: MastCost,
+    sensor_cost: SensorCost,
+) -> Cover:
+    """A plan on the masts of ``cols`` (candidates; site_of: (C,) each one's mast) from
+    an LP's solution x (len(cols),) over them (``joint.sensors_on_masts``): the
+    candidates at ``threshold`` or above, the largest x first, each where its mast has
+    room; completed by greedy per cost from ``cols``, improved, and with masts closed
+    while that is cheaper. At k = 2 on two_routes, on 23 masts of a plan of 83 sensors
+    (152): 135-138, 0.7-0.8 s each."""
+    above = np.flatnonzero(x >= threshold - 1e-9)
+    plan = Cover(inst)
+    for c in cols[above[np.argsort(-x[above], kind="stable")]]:
+        if not plan.full(int(site_of[c])):
+            plan.add(int(c))
+    plan = complete(plan, cols, site_of, mast_cost, sensor_cost)
+    return close_sites(improve(plan, cols, sensor_cost), site_of, mast_cost, sensor_cost)
 
 
 def _joint_bound(
@@ -855,10 +912,7 @@ def prove_and_plan(
         if on_lp.slack >= 0:
             plans.append(on_lp.chosen)
     plans = plans or [greedies[0].chosen]  # short of the goal: the most greedy covers
-    yield solution.progress(
-        "search", problem.rho, bound=lower, best=hold_best(problem, cands, solution, plans),
-        stage="plans",
-    )  # fmt: skip
+    yield _at_plans(problem, cands, solution, lower, plans)
     price = sensor_price(problem, cands) if s.objective == "cost" else 1.0
     # Plans rounded from the LP are rounded for the sensors alone, so only where masts
     # cost nothing. Where they do, they never won: on two_routes 128-146 against 74 at
@@ -878,10 +932,7 @@ def prove_and_plan(
         if plan is None:
             break
         plans.append(plan)
-        yield solution.progress(
-            "search", problem.rho, bound=lower, best=hold_best(problem, cands, solution, plans),
-            stage="plans",
-        )  # fmt: skip
+        yield _at_plans(problem, cands, solution, lower, plans)
     if log.isEnabledFor(logging.INFO):
         log.info(
             "plans: greedy, on the masts and on the LP's columns %s, rounded from the LP %s"
@@ -1016,7 +1067,7 @@ def solve_whole(
         )
         return solution
     chosen, bound, _ = yield from prove_and_plan(problem, cands, inst, solution, deadline, stop)
-    solution.bound = yield from _on_masts(
+    solution.bound, chosen = yield from _on_masts(
         problem, cands, inst, solution, chosen, bound,
         deadline if proof_deadline is None else proof_deadline, stop,
     )  # fmt: skip

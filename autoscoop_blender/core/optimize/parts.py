@@ -765,7 +765,7 @@ def rejoin(
     before = plan_value(problem, cands, start)
     on_masts = 0.0
     if window is None:
-        on_masts = yield from sensors_on_masts(inst, cands.position, sites, deadline, stop)
+        on_masts = (yield from sensors_on_masts(inst, cands.position, sites, deadline, stop)).bound
     cols = milp_candidates(inst, cands.position, sites, start)
     mc, sc = mast_aware_costs(problem, cands, len(cols))
     chosen = yield from sensors_on_sites(
