@@ -811,12 +811,12 @@ def _on_masts(
     )  # fmt: skip
     bound = dataclasses.replace(bound, on_masts=whole_sensors(lp.bound))
     plans = [chosen]
+    mc, sc = mast_aware_costs(problem, cands, len(lp.cols))
     for threshold in ON_MASTS_THRESHOLDS:
         if lp.x is None or (stop is not None and stop.is_set()):
             break
         if deadline is not None and time.perf_counter() >= deadline:
             break
-        mc, sc = mast_aware_costs(problem, cands, len(lp.cols))
         rounded = plan_on_masts(inst, cands.position, lp.cols, lp.x, threshold, mc, sc)
         if rounded.slack >= 0:
             plans.append(rounded.chosen)
@@ -1050,8 +1050,8 @@ def solve_whole(
 ) -> Generator[Progress, None, Solution]:
     """The lp optimizer on the whole ground at once (see the module docstring): the
     candidate set, the bounds and the best plan, whose sensors it then fixes.
-    proof_deadline: when the LP of the sensors on the plan's own masts must end
-    (default: ``deadline``)."""
+    proof_deadline: when the LP of the sensors on the plan's own masts and the plans
+    rounded from it must end (default: ``deadline``)."""
     cands = yield from candidates_until(problem, solution, stop)
     if cands is None:
         solution.stop_reason = StopReason.stopped_before_plan()

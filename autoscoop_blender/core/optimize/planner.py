@@ -84,9 +84,9 @@ class LPPlanner:
                     problem, solution, n_parts, deadline, self.stop, self.builder
                 )
             )
-        # The LP on the plan's own masts may take half the finish's share: a search
-        # that runs to its deadline (at k = 2) leaves it no time, and the finish of a
-        # plan evaluated ahead takes about 1 s of its 12.
+        # The LP on the plan's own masts and the plans rounded from it may take half
+        # the finish's share: a search that runs to its deadline (at k = 2) leaves
+        # them no time, and the finish of a plan evaluated ahead takes about 1 s of 12.
         return (
             yield from solve_whole(
                 problem, solution, deadline, self.stop, deadline + finish_s(limit) / 2
