@@ -154,12 +154,13 @@ def site_excess(
     return excess, phi
 
 
-def _top_per_site(score: F64, site_of: I64, cap: int) -> I64:
-    """The indices of the ``cap`` largest ``score`` at each site (of ``site_of``)."""
+def _top_per_site(score: F64, site_of: I64, cap: int | I64) -> I64:
+    """The indices of the ``cap`` largest ``score`` at each site (of ``site_of``);
+    cap: one for all, or one per entry (its site's, the same for each of them)."""
     order = np.lexsort((-score, site_of))
     sites = site_of[order]
     rank = np.arange(len(order)) - np.searchsorted(sites, sites)
-    return order[rank < cap]
+    return order[rank < (cap if np.ndim(cap) == 0 else np.asarray(cap)[order])]
 
 
 def dual_curve(
@@ -652,7 +653,7 @@ def sensors_on_masts(
     h = _new_highs(None)
     _cover_rows(h, n, inst.goal, merged.need if inst.multi else None, merged.weight)
     _add_columns(h, merged.matrix, np.ones(n_cols), 1.0)
-    room = np.full(n_cols, n_cols, dtype=np.int64)  # no cap: every candidate may stand
+    room: int | I64 = n_cols  # no cap: every candidate may stand
     if inst.cap is not None:
         local, which = np.unique(site_of[cols], return_inverse=True)
         which = which.ravel()
@@ -680,10 +681,7 @@ def sensors_on_masts(
     # The Lagrangian of the cover rows and the goal row at (pi, sigma): each group's
     # u at its best in [0, 1], each site's best ``room`` candidates at 1.
     excess = np.maximum(0.0, np.asarray(merged.matrix @ pi, dtype=float) - 1.0)
-    order = np.lexsort((-excess, site_of[cols]))
-    at = site_of[cols][order]
-    rank = np.arange(n_cols) - np.searchsorted(at, at)
-    kept = order[rank < room[order]]
+    kept = _top_per_site(excess, site_of[cols], room)
     value = (
         sigma * inst.goal
         - float(np.maximum(0.0, sigma * merged.weight - merged.need * pi).sum())
