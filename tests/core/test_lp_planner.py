@@ -803,7 +803,7 @@ def test_the_windows_at_k_2_are_handed_the_plan_the_deadline_and_the_stop(monkey
     """At k = 2 the windows (``_then_windows``) start from the best plan found before
     them, at the masts' costs, with the search's deadline and stop, on the
     candidates' positions; at k = 1 none run."""
-    calls = spy(monkeypatch, "improve_by_windows")
+    calls = spy(monkeypatch, "improve_by_windows", "rounded_on_masts")
     rows = [[0, 1, 2, 3], [0, 1, 2, 3], [0, 1, 2, 3], [0, 1, 2], [1, 3], [0, 1, 2, 3]]
     site_of = [0, 1, 1, 2, 2, 2]
     problem = HandLP(rows, 4, site_of, need=[2] * 4, objective="cost", max_sensors_per_mast=2)
@@ -817,8 +817,12 @@ def test_the_windows_at_k_2_are_handed_the_plan_the_deadline_and_the_stop(monkey
     assert windows["deadline"] == deadline and windows["stop"] is stop
     assert windows["site_of"] is cands.position and windows["site_xy"] is cands.positions
     assert windows["mast_cost"] == 3.0 and windows["sensor_cost"] == 1.0
-    # The plan on the LP's columns (site 1's pair, 5) came before them.
+    # The plan on the LP's columns (site 1's pair, 5) came before them, and the plans
+    # rounded on its masts before the windows.
     assert sorted(windows["chosen"]) == [1, 2]
+    rounding = calls["rounded_on_masts"][0]
+    assert rounding["chosen"] == windows["chosen"] and rounding["inst"] is inst
+    assert rounding["deadline"] == deadline and rounding["stop"] is stop
     calls["improve_by_windows"].clear()
     problem = HandLP(GREEDY_TRAP, 7, [0, 1, 2], objective="cost")
     inst = lp_module.instance(problem.candidates, problem, np.zeros(7, bool))
@@ -827,10 +831,13 @@ def test_the_windows_at_k_2_are_handed_the_plan_the_deadline_and_the_stop(monkey
     assert calls["improve_by_windows"] == []
 
 
-def _scripted_windows(monkeypatch, script):
+def _scripted_windows(monkeypatch, script, rounding=()):
     """``improve_by_windows`` replaced: each call records its start plan and the
-    generator's close, and yields ``script``'s plans for it (None: HiGHS at work)."""
+    generator's close, and yields ``script``'s plans for it (None: HiGHS at work).
+    ``rounded_on_masts`` replaced too: each call records its plan and returns at once
+    the plans ``rounding`` lists for it (none by default). Returns (runs, rounds)."""
     runs = []
+    rounds = []
 
     def scripted(inst, site_of, site_xy, chosen, *rest):
         run = {"chosen": list(chosen), "closed": False}
@@ -842,8 +849,15 @@ def _scripted_windows(monkeypatch, script):
             raise
         return chosen
 
+    def rounded(problem, cands, inst, chosen, deadline, stop):
+        yield from ()
+        rounds.append(list(chosen))
+        plans = rounding[len(rounds) - 1] if len(rounds) <= len(rounding) else []
+        return joint_module.OnMasts(0.0, np.zeros(0, np.int64)), [list(p) for p in plans]
+
     monkeypatch.setattr(lp_module, "improve_by_windows", scripted)
-    return runs
+    monkeypatch.setattr(lp_module, "rounded_on_masts", rounded)
+    return runs, rounds
 
 
 def test_windows_go_on_from_their_own_plan_unless_a_better_one_comes(monkeypatch):
@@ -856,7 +870,7 @@ def test_windows_go_on_from_their_own_plan_unless_a_better_one_comes(monkeypatch
     problem = HandLP(rows, 4, [0, 1, 1, 2, 2, 2], need=[2] * 4, objective="cost")
     cands = problem.candidates
     inst = lp_module.instance(cands, problem, np.zeros(4, bool))
-    runs = _scripted_windows(monkeypatch, [[None, [0, 1, 2], None, [0, 3]], [None], []])
+    runs, _ = _scripted_windows(monkeypatch, [[None, [0, 1, 2], None, [0, 3]], [None], []])
     held = lp_module._Held(13.0, [0, 1, 2, 3])
     windows = lp_module._Windows(problem, cands, inst, held, None, None)
     first = windows.steps()
@@ -873,7 +887,7 @@ def test_windows_go_on_from_their_own_plan_unless_a_better_one_comes(monkeypatch
     assert steps(windows.steps())[1] == [None]
     assert [r["chosen"] for r in runs] == [[0, 1, 2, 3], [1, 2]]
     # One closed while at work when a better plan comes.
-    runs = _scripted_windows(monkeypatch, [[None, None], [None]])
+    runs, _ = _scripted_windows(monkeypatch, [[None, None], [None]])
     held = lp_module._Held(13.0, [0, 1, 2, 3])
     windows = lp_module._Windows(problem, cands, inst, held, None, None)
     assert next(windows.steps()) is None
@@ -883,6 +897,51 @@ def test_windows_go_on_from_their_own_plan_unless_a_better_one_comes(monkeypatch
     # No plan reaches the goal: no windows.
     empty = lp_module._Windows(problem, cands, inst, lp_module._Held(math.inf, []), None, None)
     assert steps(empty.steps())[1] == [] and len(runs) == 2
+
+
+def test_windows_alternate_with_plans_rounded_on_the_plans_masts(monkeypatch):
+    """From the best plan so far ([0, 1, 2, 3] on sites 0-2: 3 x 3 + 4 = 13) a
+    rounding on its masts comes first: of its plans, the dearer [0, 1, 2, 3, 4] (14)
+    is passed over and the cheapest, [0, 1, 2] (9), taken and yielded; the windows
+    start from it. Their cheaper plan [0, 3] (8), once they find nothing more for
+    ``STALL_S`` (here: at once), is rounded from with the windows kept where they are:
+    that rounding offers only plans it has been at or dearer ones, so the same
+    windows go on, to [1, 2] (5). Rounded from, that gives [3, 5], as cheap and not
+    yet seen: taken, not yielded (no cheaper), the windows closed and started again
+    from it. They end on it, and it was rounded from already: the search ends."""
+    rows = [[0, 1, 2, 3], [0, 1, 2, 3], [0, 1, 2, 3], [0, 1, 2], [1, 3], [0, 1, 2, 3]]
+    problem = HandLP(rows, 4, [0, 1, 1, 2, 2, 2], need=[2] * 4, objective="cost")
+    cands = problem.candidates
+    inst = lp_module.instance(cands, problem, np.zeros(4, bool))
+    monkeypatch.setattr(lp_module, "STALL_S", -1.0)
+    script = [[None, [0, 3], None, [1, 2], None], [None]]
+    rounding = [[[0, 1, 2, 3, 4], [0, 1, 2]], [[0, 1, 2], [0, 3], [0, 3, 4]], [[3, 5]]]
+    runs, rounds = _scripted_windows(monkeypatch, script, rounding)
+    held = lp_module._Held(13.0, [0, 1, 2, 3])
+    windows = lp_module._Windows(problem, cands, inst, held, None, None)
+    got = steps(windows.steps())[1]
+    incumbent = lp_module.Incumbent
+    assert got == [incumbent(9.0, [0, 1, 2]), None, incumbent(8.0, [0, 3]), None,
+                   incumbent(5.0, [1, 2]), None]  # fmt: skip
+    assert rounds == [[0, 1, 2, 3], [0, 3], [1, 2]]
+    assert [(r["chosen"], r["closed"]) for r in runs] == [([0, 1, 2], True), ([3, 5], False)]
+    # Without the stall, the windows run to their end before the plan they reach is
+    # rounded from: once, as they ended on [1, 2].
+    monkeypatch.setattr(lp_module, "STALL_S", 600.0)
+    runs, rounds = _scripted_windows(monkeypatch, script, [[[0, 1, 2]]])
+    windows = lp_module._Windows(problem, cands, inst, held, None, None)
+    assert steps(windows.steps())[1] == [incumbent(9.0, [0, 1, 2]), None,
+                                          incumbent(8.0, [0, 3]), None,
+                                          incumbent(5.0, [1, 2]), None]  # fmt: skip
+    assert rounds == [[0, 1, 2, 3], [1, 2]] and len(runs) == 1 and not runs[0]["closed"]
+    # Stopped, or past the deadline: neither rounds nor windows.
+    stop = threading.Event()
+    stop.set()
+    past = time.perf_counter() - 1.0
+    for deadline, stopped in ((None, stop), (past, None)):
+        late = lp_module._Windows(problem, cands, inst, held, deadline, stopped)
+        runs, rounds = _scripted_windows(monkeypatch, script, rounding)
+        assert steps(late.steps())[1] == [] and runs == [] and rounds == []
 
 
 def test_after_the_lp_plans_are_built_on_its_columns_above_each_value(monkeypatch, caplog):
@@ -895,7 +954,7 @@ def test_after_the_lp_plans_are_built_on_its_columns_above_each_value(monkeypatc
     cands = problem.candidates
     inst = lp_module.instance(cands, problem, np.zeros(4, bool))
     calls = spy(monkeypatch, "plan_from")
-    runs = _scripted_windows(monkeypatch, [[None]])
+    runs, _ = _scripted_windows(monkeypatch, [[None]])
     held = lp_module._Held(13.0, [0, 1, 2, 3])
     lp = _lp(2.0, columns=(0, 1, 3, 5, 2), x=(1.0, 0.03, 0.07, 0.5, 0.0))
 
@@ -933,7 +992,7 @@ def test_windows_run_while_the_joint_lp_waits(monkeypatch):
     problem = HandLP(rows, 4, [0, 1, 1, 2, 2, 2], need=[2] * 4, objective="cost")
     cands = problem.candidates
     inst = lp_module.instance(cands, problem, np.zeros(4, bool))
-    runs = _scripted_windows(monkeypatch, [[None, [0, 1, 2], None, None]])
+    runs, _ = _scripted_windows(monkeypatch, [[None, [0, 1, 2], None, None]])
     held = lp_module._Held(13.0, [0, 1, 2, 3])
     windows = lp_module._Windows(problem, cands, inst, held, None, None)
     joint = lp_module._JointStart(problem, cands, inst, 100.0, None, None, windows)
