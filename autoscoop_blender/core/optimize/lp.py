@@ -31,8 +31,8 @@ part): then the bounds stop where they are (still proven) and the plans come fro
 what the LP has so far. At k > 1 the windows (``_Windows``) follow the clock too:
 each window's MILP has 10 s, and the roundings come after 25 s without a cheaper
 plan, so the plan may differ from run to run (two_routes at k = 2 gave 131 twice on
-2026-12-08; the windows alone had given 137-146). A ground too large for one matrix is planned in parts with
-the same machinery (``parts.py``).
+2026-12-08; the windows alone had given 137-146). A ground too large for one matrix
+is planned in parts with the same machinery (``parts.py``).
 
 A little over 500 lines: the whole-ground search (bounds beside plans, the LP's
 rounding, the mast-aware MILP's plan) is one generator with its stop and deadline.
